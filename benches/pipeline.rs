@@ -1,0 +1,2 @@
+//! Pipeline bench (placeholder).
+fn main() {}

@@ -1,0 +1,1 @@
+//! Raw FFI bindings to the system libfreenect (under construction).

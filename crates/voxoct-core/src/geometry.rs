@@ -1,0 +1,160 @@
+//! Plain geometric types shared by every voxoct crate.
+
+use glam::{UVec3, Vec3};
+
+/// The one scalar type of voxoct: metres, single precision.
+pub type Real = f32;
+
+/// An axis-aligned box, closed: it contains its faces, edges and corners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+impl Aabb {
+    /// A box from its two corners (`min <= max` on every axis is the caller's job).
+    #[inline]
+    #[must_use]
+    pub const fn new(min: Vec3, max: Vec3) -> Self {
+        Self { min, max }
+    }
+
+    /// A cube from its minimum corner and edge length.
+    #[inline]
+    #[must_use]
+    pub fn cube(min: Vec3, edge: Real) -> Self {
+        Self {
+            min,
+            max: min + Vec3::splat(edge),
+        }
+    }
+
+    /// The centre of the box.
+    #[inline]
+    #[must_use]
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// Half the extent on each axis.
+    #[inline]
+    #[must_use]
+    pub fn half_extents(&self) -> Vec3 {
+        (self.max - self.min) * 0.5
+    }
+
+    /// Whether the closed box contains `p`.
+    #[inline]
+    #[must_use]
+    pub fn contains(&self, p: Vec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+}
+
+/// A triangle in 3D, vertices in counter-clockwise order seen from the side
+/// its normal points to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Triangle {
+    /// The three vertices.
+    pub v: [Vec3; 3],
+}
+
+impl Triangle {
+    /// A triangle from its three vertices.
+    #[inline]
+    #[must_use]
+    pub const fn new(a: Vec3, b: Vec3, c: Vec3) -> Self {
+        Self { v: [a, b, c] }
+    }
+
+    /// The unnormalised normal `(b - a) × (c - a)`: its length is twice the area.
+    #[inline]
+    #[must_use]
+    pub fn scaled_normal(&self) -> Vec3 {
+        (self.v[1] - self.v[0]).cross(self.v[2] - self.v[0])
+    }
+
+    /// The triangle's bounding box.
+    #[inline]
+    #[must_use]
+    pub fn aabb(&self) -> Aabb {
+        Aabb::new(
+            self.v[0].min(self.v[1]).min(self.v[2]),
+            self.v[0].max(self.v[1]).max(self.v[2]),
+        )
+    }
+
+    /// Whether every coordinate is finite.
+    #[inline]
+    #[must_use]
+    pub fn is_finite(&self) -> bool {
+        self.v.iter().all(|p| p.is_finite())
+    }
+}
+
+/// A regular cubic grid: the cells of one octree depth.
+///
+/// Cell `(i, j, k)` spans `origin + cell * (i, j, k)` to `origin + cell * (i + 1, j + 1, k + 1)`;
+/// valid coordinates are `0..resolution` on each axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridSpec {
+    /// Minimum corner of cell `(0, 0, 0)` (the octree root's minimum corner).
+    pub origin: Vec3,
+    /// Edge length of one cell, metres.
+    pub cell: Real,
+    /// Number of cells along each axis (`2^depth`).
+    pub resolution: u32,
+}
+
+impl GridSpec {
+    /// Centre of cell `coord`.
+    #[inline]
+    #[must_use]
+    pub fn cell_center(&self, coord: UVec3) -> Vec3 {
+        self.origin + (coord.as_vec3() + Vec3::splat(0.5)) * self.cell
+    }
+
+    /// The closed box of cell `coord`.
+    #[inline]
+    #[must_use]
+    pub fn cell_aabb(&self, coord: UVec3) -> Aabb {
+        Aabb::cube(self.origin + coord.as_vec3() * self.cell, self.cell)
+    }
+}
+
+/// One marked cell of an octree at some depth, with what the insertions left in it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cell {
+    /// Integer grid coordinates at the cell's depth (see [`GridSpec`]).
+    pub coord: UVec3,
+    /// How many inserted triangles overlap the cell (summed over children for coarser depths).
+    pub hits: u32,
+    /// Sum over those triangles of the signed distance from the cell centre to the
+    /// triangle's plane, metres, positive on the side the triangle's normal points to.
+    /// `sdf_sum / hits` is the mean signed distance.
+    pub sdf_sum: Real,
+}
+
+impl Cell {
+    /// The thesis's value: 1 for a marked cell.
+    #[inline]
+    #[must_use]
+    pub fn value(&self) -> Real {
+        if self.hits > 0 { 1.0 } else { 0.0 }
+    }
+
+    /// Mean signed distance from the cell centre to the triangles that marked it
+    /// (0 when `hits == 0`).
+    #[inline]
+    #[must_use]
+    pub fn mean_sdf(&self) -> Real {
+        if self.hits > 0 {
+            self.sdf_sum / self.hits as Real
+        } else {
+            0.0
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! voxoct-kinect (under construction).

@@ -1,0 +1,1 @@
+//! voxoct-mesh (under construction).

@@ -1,0 +1,1 @@
+//! voxoct-stl (under construction).

@@ -1,0 +1,1 @@
+//! voxoct-turntable (under construction).
