@@ -1,2 +1,91 @@
-//! Pipeline bench (placeholder).
-fn main() {}
+//! End-to-end: a recorded scan held in memory → filtered, triangulated, inserted, meshed and
+//! written as binary STL into memory.
+//!
+//! Uses the bunny scan of `../shared/data` when it is there (8 snapshots × 10 frames, the
+//! figures quoted in the README), otherwise a simulated scan of the built-in figurine.
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::Duration;
+
+use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
+use voxoct::depth::{RecordedScan, ScannerConfig, SensorConfig};
+use voxoct::kinect::{DepthSource, SimConfig, SimulatedKinect};
+use voxoct::pipeline::{Params, SnapshotFrames, reconstruct};
+
+fn load() -> (String, ScannerConfig, Vec<SnapshotFrames>) {
+    let bunny = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bunny-scan");
+    if let Ok(scan) = RecordedScan::open(&bunny) {
+        let snapshots = scan
+            .frames
+            .into_iter()
+            .zip(&scan.manifest.snapshots)
+            .map(|(frames, e)| SnapshotFrames {
+                angle_deg: e.angle_deg,
+                frames,
+            })
+            .collect();
+        return ("bunny".into(), scan.manifest.config(), snapshots);
+    }
+    let sim = SimConfig::default();
+    let mut kinect = SimulatedKinect::builtin("figurine", sim).expect("figurine");
+    let snapshots = (0..8)
+        .map(|k| {
+            let angle = 45.0 * k as f32;
+            kinect.set_turntable_angle_deg(angle);
+            let frames = (0..10)
+                .map(|_| kinect.grab(Duration::from_secs(5)).expect("frame"))
+                .collect();
+            SnapshotFrames {
+                angle_deg: angle,
+                frames,
+            }
+        })
+        .collect();
+    let config = ScannerConfig {
+        sensor: SensorConfig {
+            intrinsics: sim.intrinsics,
+            depth_unit_m: sim.unit_m,
+        },
+        rig: sim.rig,
+        ..ScannerConfig::default()
+    };
+    ("figurine".into(), config, snapshots)
+}
+
+fn bench_pipeline(c: &mut Criterion) {
+    let (name, config, snapshots) = load();
+    let mut group = c.benchmark_group("pipeline");
+    group.sample_size(10);
+    for leaf in [0.001_f32, 0.0005] {
+        let params = Params {
+            leaf_m: leaf,
+            ..Params::default()
+        };
+        let id = BenchmarkId::new(format!("{name}/to_stl"), format!("{}mm", leaf * 1000.0));
+        let mut stl = Vec::with_capacity(64 << 20);
+        group.bench_function(id, |b| {
+            // Cloning the frames (the input) is setup, not measured.
+            b.iter_batched(
+                || snapshots.clone(),
+                |input| {
+                    let r = reconstruct(&config, input, &params, |_| {}).expect("reconstruct");
+                    stl.clear();
+                    voxoct::stl::write_binary(
+                        &mut stl,
+                        &r.mesh.vertices,
+                        &r.mesh.triangles,
+                        1000.0,
+                    )
+                    .expect("stl");
+                    black_box(stl.len())
+                },
+                BatchSize::LargeInput,
+            );
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_pipeline);
+criterion_main!(benches);

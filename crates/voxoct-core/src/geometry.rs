@@ -117,11 +117,39 @@ impl GridSpec {
         self.origin + (coord.as_vec3() + Vec3::splat(0.5)) * self.cell
     }
 
-    /// The closed box of cell `coord`.
+    /// The grid-plane corner `origin + cell * coord` (coordinates may go up to
+    /// `resolution`, the far faces of the last cells).
+    ///
+    /// Every box voxoct-core tests is built from these corners, computed exactly this
+    /// way, so neighbouring cells share their faces bit for bit and a node's box at one
+    /// depth has the very same corners as the union of its children (the cell edge of
+    /// each depth is the root edge divided by a power of two, so `i * cell` rounds the
+    /// same at every depth).
+    #[inline]
+    #[must_use]
+    pub fn corner(&self, coord: UVec3) -> Vec3 {
+        self.origin + coord.as_vec3() * self.cell
+    }
+
+    /// The closed box of cell `coord`: from [`corner(coord)`](Self::corner) to
+    /// `corner(coord + 1)`.
     #[inline]
     #[must_use]
     pub fn cell_aabb(&self, coord: UVec3) -> Aabb {
-        Aabb::cube(self.origin + coord.as_vec3() * self.cell, self.cell)
+        Aabb::new(
+            self.origin + coord.as_vec3() * self.cell,
+            self.origin + (coord.as_vec3() + Vec3::ONE) * self.cell,
+        )
+    }
+
+    /// The closed box of the whole grid.
+    #[inline]
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        Aabb::new(
+            self.origin,
+            self.origin + Vec3::splat(self.resolution as Real) * self.cell,
+        )
     }
 }
 

@@ -1,1 +1,48 @@
-//! voxoct-stl (under construction).
+//! voxoct-stl: binary and ASCII STL, read and write, for voxoct meshes.
+//!
+//! The library works in metres; printers and slicers assume millimetres. The writers take a
+//! `scale` applied at the file boundary (`1000.0` for metres → millimetres); the readers
+//! return file units, and [`scale_triangles`] converts back.
+//!
+//! - [`write_binary`] / [`write_ascii`] stream an indexed mesh to any [`std::io::Write`];
+//!   facet normals come from the winding (counter-clockwise seen from outside).
+//! - [`write_file`] writes to a temporary file in the same directory and renames it, so a
+//!   failed write never leaves a partial file at the destination.
+//! - [`read`] / [`read_file`] detect binary or ASCII robustly (a binary header may begin with
+//!   `solid`), and report truncation, a count that disagrees with the length, non-finite
+//!   coordinates and ASCII syntax errors with line numbers.
+//! - [`weld`] turns the triangle soup back into an indexed mesh: identical `f32` bits are one
+//!   vertex, which is what makes a welded STL watertight for slicers.
+//!
+//! ```
+//! use voxoct_stl::{glam::Vec3, read, weld, write_binary};
+//!
+//! // A tetrahedron, outward wound, in metres.
+//! let v = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z].map(|p| p * 0.01);
+//! let t = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+//! let mut bytes = Vec::new();
+//! write_binary(&mut bytes, &v, &t, 1000.0).unwrap(); // millimetres in the file
+//! assert_eq!(bytes.len(), 84 + 4 * 50);
+//!
+//! let soup = read(bytes.as_slice()).unwrap();
+//! let (vertices, triangles) = weld(&soup);
+//! assert_eq!((vertices.len(), triangles.len()), (4, 4));
+//! assert_eq!(soup[3].v[2], Vec3::new(0.0, 0.0, 10.0));
+//! ```
+//!
+//! Throughput (`benches/stl.rs`, 1 M triangles, shared machine): binary into a `Vec`
+//! ≈ 2 GiB/s, binary to a file through [`write_file`] (synced, renamed) ≈ 0.5 GiB/s, ASCII
+//! ≈ 140 MiB/s.
+
+pub use voxoct_core::glam;
+
+mod error;
+mod read;
+mod write;
+
+pub use error::StlError;
+pub use read::{parse, read, read_file, scale_triangles, weld};
+pub use write::{
+    BINARY_HEADER_BYTES, BINARY_TRIANGLE_BYTES, StlFormat, write, write_ascii, write_binary,
+    write_file,
+};

@@ -1,0 +1,492 @@
+//! Exact-in-practice triangle/box overlap: Akenine-Möller's separating-axis test.
+
+use glam::{DVec3, Vec3};
+
+use crate::geometry::{Aabb, Triangle};
+
+/// Whether the closed triangle `tri` and the closed box `aabb` share at least one point.
+///
+/// This is the separating-axis test of T. Akenine-Möller, *Fast 3D Triangle-Box Overlap
+/// Testing* (2001): the two convex sets are disjoint exactly when their projections are
+/// disjoint on one of 13 axes — the 3 box normals, the triangle normal and the 9 cross
+/// products of a triangle edge with a box axis. Both sets are **closed**: a triangle that
+/// only touches a face, an edge or a corner of the box overlaps it.
+///
+/// # Precision
+///
+/// Coordinates are `f32`; the test runs in `f64`. Edge differences of `f32` values and
+/// their products with `f32` coordinates are exact in `f64`, so the nine edge axes and
+/// the three box axes are decided with a single rounding: the test never reports a
+/// separation that exact arithmetic would not find (touching is never missed on those
+/// axes), and it may report an overlap only across a gap of about one `f64` rounding
+/// (~1e-16 relative). The normal axis carries one or two more roundings, still far below
+/// `f32` resolution. No epsilon is added anywhere.
+///
+/// The test is also *monotone*: if it accepts a box, it accepts every box containing it
+/// (same arithmetic, same rounding direction). The octree relies on this: pruning a
+/// node whose box is rejected can never drop a leaf whose own box would be accepted.
+///
+/// # Degenerate and invalid input
+///
+/// - A triangle with a non-finite coordinate overlaps nothing (`false`).
+/// - A box with a non-finite coordinate, or with `min > max` on some axis, is empty and
+///   overlaps nothing.
+/// - A degenerate triangle (zero area: repeated vertices or collinear vertices) is
+///   tested as the segment or point it is: its normal is exactly zero and its edges are
+///   parallel, and the remaining axes are exactly the separating axes of a segment (or a
+///   point) against a box. (The octree, which needs a normal, skips such triangles.)
+///
+/// # Example
+///
+/// ```
+/// use voxoct_core::glam::Vec3;
+/// use voxoct_core::{intersection_test_aabb_triangle, Aabb, Triangle};
+///
+/// let unit = Aabb::new(Vec3::ZERO, Vec3::ONE);
+/// let touching = Triangle::new(Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 1.0, 0.0));
+/// let apart = Triangle::new(Vec3::new(1.5, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 1.0, 0.0));
+/// assert!(intersection_test_aabb_triangle(&unit, &touching));
+/// assert!(!intersection_test_aabb_triangle(&unit, &apart));
+/// ```
+#[inline]
+#[must_use]
+pub fn intersection_test_aabb_triangle(aabb: &Aabb, tri: &Triangle) -> bool {
+    if !(aabb.min.is_finite() && aabb.max.is_finite() && aabb.min.cmple(aabb.max).all()) {
+        return false;
+    }
+    if !tri.is_finite() {
+        return false;
+    }
+    // The same formulas as `TriangleSat` (so the same bits), evaluated lazily: most
+    // separated pairs are decided by the cheap axes first.
+    let bmin = tri.v[0].min(tri.v[1]).min(tri.v[2]);
+    let bmax = tri.v[0].max(tri.v[1]).max(tri.v[2]);
+    if !(bmax.cmpge(aabb.min).all() && bmin.cmple(aabb.max).all()) {
+        return false;
+    }
+    let (mn, mx) = (aabb.min.as_dvec3(), aabb.max.as_dvec3());
+    let v = tri.v.map(Vec3::as_dvec3);
+    let e = edges(&v);
+    let n = e[0].cross(v[2] - v[0]);
+    let (n_lo, n_hi) = min_max3(dot(n, v[0]), dot(n, v[1]), dot(n, v[2]));
+    if !normal_passes(n, n_lo, n_hi, mn, mx) {
+        return false;
+    }
+    let pairs = [
+        (mn.y, mx.y, mn.z, mx.z),
+        (mn.x, mx.x, mn.z, mx.z),
+        (mn.x, mx.x, mn.y, mx.y),
+    ];
+    for (u, &(p0, p1, q0, q1)) in pairs.iter().enumerate() {
+        for ed in e {
+            let (a, b, lo, hi) = edge_axis(u, ed, &v);
+            if !edge_passes(a, b, lo, hi, p0, p1, q0, q1) {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// The three edges `b - a`, `c - b`, `a - c`.
+#[inline(always)]
+fn edges(v: &[DVec3; 3]) -> [DVec3; 3] {
+    [v[1] - v[0], v[2] - v[1], v[0] - v[2]]
+}
+
+/// The axis `ed × u` (box axis `u`) as coefficients on the two other coordinates
+/// ((y, z), (x, z) or (x, y)), and the triangle's projection interval on it.
+#[inline(always)]
+fn edge_axis(u: usize, ed: DVec3, v: &[DVec3; 3]) -> (f64, f64, f64, f64) {
+    let (a, b, lo, hi);
+    match u {
+        0 => {
+            // edge × x = (0, e.z, -e.y)
+            (a, b) = (ed.z, -ed.y);
+            let p = |w: DVec3| a * w.y + b * w.z;
+            (lo, hi) = min_max3(p(v[0]), p(v[1]), p(v[2]));
+        }
+        1 => {
+            // edge × y = (-e.z, 0, e.x)
+            (a, b) = (-ed.z, ed.x);
+            let p = |w: DVec3| a * w.x + b * w.z;
+            (lo, hi) = min_max3(p(v[0]), p(v[1]), p(v[2]));
+        }
+        _ => {
+            // edge × z = (e.y, -e.x, 0)
+            (a, b) = (ed.y, -ed.x);
+            let p = |w: DVec3| a * w.x + b * w.y;
+            (lo, hi) = min_max3(p(v[0]), p(v[1]), p(v[2]));
+        }
+    }
+    (a, b, lo, hi)
+}
+
+/// The normal axis does not separate the box `mn..=mx`.
+#[inline(always)]
+fn normal_passes(n: DVec3, n_lo: f64, n_hi: f64, mn: DVec3, mx: DVec3) -> bool {
+    let (lx, hx) = span(n.x, mn.x, mx.x);
+    let (ly, hy) = span(n.y, mn.y, mx.y);
+    let (lz, hz) = span(n.z, mn.z, mx.z);
+    !(n_hi < (lx + ly) + lz || n_lo > (hx + hy) + hz)
+}
+
+/// The edge axis `(a, b)` does not separate the box `[p0, p1] × [q0, q1]`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn edge_passes(a: f64, b: f64, lo: f64, hi: f64, p0: f64, p1: f64, q0: f64, q1: f64) -> bool {
+    let (la, ha) = span(a, p0, p1);
+    let (lb, hb) = span(b, q0, q1);
+    !(hi < la + lb || lo > ha + hb)
+}
+
+/// The lower and upper ends of `a * [mn, mx]`.
+#[inline(always)]
+fn span(a: f64, mn: f64, mx: f64) -> (f64, f64) {
+    if a >= 0.0 {
+        (a * mn, a * mx)
+    } else {
+        (a * mx, a * mn)
+    }
+}
+
+/// A triangle prepared for many box tests: axes and projections computed once.
+///
+/// Every box test of the crate (the public function, the reference descent and the fast
+/// insertion) goes through [`TriangleSat::overlaps_skip_box_axes`] with the same `f64`
+/// box corners, so they all agree bit for bit.
+#[derive(Debug, Clone)]
+pub(crate) struct TriangleSat {
+    /// The triangle's bounding box (exact, `f32`).
+    pub(crate) bmin: Vec3,
+    pub(crate) bmax: Vec3,
+    /// First vertex, `f64`.
+    v0: DVec3,
+    /// Unnormalised normal `(b - a) × (c - a)` in `f64`.
+    n: DVec3,
+    /// Unit normal (zero for a degenerate triangle).
+    n_unit: DVec3,
+    /// Projection interval of the triangle on `n`.
+    n_lo: f64,
+    n_hi: f64,
+    /// For box axis `u` (x, y, z) and edge `i`, the axis `edge_i × u` acts on the two
+    /// other coordinates (y, z), (x, z), (x, y) with coefficients `ea[u][i]`,
+    /// `eb[u][i]`; the triangle projects to `elo[u][i] ..= ehi[u][i]` on it.
+    ea: [[f64; 3]; 3],
+    eb: [[f64; 3]; 3],
+    elo: [[f64; 3]; 3],
+    ehi: [[f64; 3]; 3],
+}
+
+impl TriangleSat {
+    /// Prepares `tri`; `None` when a coordinate is not finite.
+    #[inline(always)]
+    pub(crate) fn new(tri: &Triangle) -> Option<Self> {
+        if !tri.is_finite() {
+            return None;
+        }
+        let v = [
+            tri.v[0].as_dvec3(),
+            tri.v[1].as_dvec3(),
+            tri.v[2].as_dvec3(),
+        ];
+        let e = edges(&v);
+        let n = e[0].cross(v[2] - v[0]);
+        let (n_lo, n_hi) = min_max3(dot(n, v[0]), dot(n, v[1]), dot(n, v[2]));
+        let len = n.length();
+        let n_unit = if len > 0.0 { n / len } else { DVec3::ZERO };
+        let mut ea = [[0.0; 3]; 3];
+        let mut eb = [[0.0; 3]; 3];
+        let mut elo = [[0.0; 3]; 3];
+        let mut ehi = [[0.0; 3]; 3];
+        for u in 0..3 {
+            for (i, &ed) in e.iter().enumerate() {
+                (ea[u][i], eb[u][i], elo[u][i], ehi[u][i]) = edge_axis(u, ed, &v);
+            }
+        }
+        let bmin = tri.v[0].min(tri.v[1]).min(tri.v[2]);
+        let bmax = tri.v[0].max(tri.v[1]).max(tri.v[2]);
+        Some(Self {
+            bmin,
+            bmax,
+            v0: v[0],
+            n,
+            n_unit,
+            n_lo,
+            n_hi,
+            ea,
+            eb,
+            elo,
+            ehi,
+        })
+    }
+
+    /// Whether the triangle has zero area (its computed normal is exactly zero: repeated
+    /// or exactly collinear vertices).
+    #[inline]
+    pub(crate) fn is_degenerate(&self) -> bool {
+        self.n == DVec3::ZERO
+    }
+
+    /// Signed distance from `p` to the triangle's plane, positive on the normal side
+    /// (0 for a degenerate triangle).
+    #[inline]
+    pub(crate) fn signed_distance(&self, p: Vec3) -> f32 {
+        dot(self.n_unit, p.as_dvec3() - self.v0) as f32
+    }
+
+    /// The separating-axis test against a closed box given by its `f32` corners
+    /// (`min <= max` is the caller's job).
+    #[inline]
+    pub(crate) fn overlaps(&self, aabb: &Aabb) -> bool {
+        // The three box normals: the bounding boxes must overlap (closed).
+        if !(self.bmax.cmpge(aabb.min).all() && self.bmin.cmple(aabb.max).all()) {
+            return false;
+        }
+        self.overlaps_skip_box_axes(aabb.min.as_dvec3(), aabb.max.as_dvec3())
+    }
+
+    /// The ten non-box axes of the test, for a box (corners converted from `f32`) whose
+    /// bounding-box test already passed.
+    #[inline]
+    pub(crate) fn overlaps_skip_box_axes(&self, mn: DVec3, mx: DVec3) -> bool {
+        if !normal_passes(self.n, self.n_lo, self.n_hi, mn, mx) {
+            return false;
+        }
+        // Nine edge axes.
+        self.edges_pass(0, mn.y, mx.y, mn.z, mx.z)
+            && self.edges_pass(1, mn.x, mx.x, mn.z, mx.z)
+            && self.edges_pass(2, mn.x, mx.x, mn.y, mx.y)
+    }
+
+    /// The cells of a block of at most 4×4×4 cells whose box is
+    /// `planes[0][i]..=planes[0][i + 1]` × … and whose bounding-box axes are already
+    /// known to pass, as bits `i + 4 j + 16 k` of the result (cells outside `dims` are
+    /// never set; planes beyond `dims` must be finite, e.g. repeats of the last one).
+    ///
+    /// Bit-identical to [`overlaps_skip_box_axes`](Self::overlaps_skip_box_axes) cell
+    /// by cell: the very same products, sums and comparisons, but with fixed-size
+    /// loops that the compiler unrolls and vectorises, and each product computed once
+    /// per plane.
+    #[inline]
+    pub(crate) fn block4_mask(&self, planes: &[[f64; 8]; 3], dims: [usize; 3]) -> u64 {
+        let [xs, ys, zs] = planes;
+        // Edge axes: bits `4 q + p` for cells `p` (first coordinate), `q` (second).
+        let [nx, ny, nz] = dims;
+        let yz = self.pair4(0, ys, ny, zs, nz);
+        let xz = self.pair4(1, xs, nx, zs, nz);
+        let xy = self.pair4(2, xs, nx, ys, ny);
+        let xm = (1u32 << dims[0]) - 1;
+        // Normal axis, per-axis spans.
+        let mut nlo = [[0.0f64; 4]; 3];
+        let mut nhi = [[0.0f64; 4]; 3];
+        for a in 0..3 {
+            let na = self.n[a];
+            let prod: [f64; 5] = std::array::from_fn(|t| na * planes[a][t]);
+            for i in 0..4 {
+                (nlo[a][i], nhi[a][i]) = if na >= 0.0 {
+                    (prod[i], prod[i + 1])
+                } else {
+                    (prod[i + 1], prod[i])
+                };
+            }
+        }
+        let mut mask = 0u64;
+        for k in 0..dims[2] {
+            let xz_row = (xz >> (4 * k)) & 0xf;
+            for j in 0..dims[1] {
+                if (yz >> (4 * k + j)) & 1 == 0 {
+                    continue;
+                }
+                let mut row = xz_row & (xy >> (4 * j)) & xm;
+                let (lyz, hyz) = (nlo[1][j], nhi[1][j]);
+                while row != 0 {
+                    let i = row.trailing_zeros() as usize;
+                    row &= row - 1;
+                    // The same sums as `normal_passes`.
+                    if !(self.n_hi < (nlo[0][i] + lyz) + nlo[2][k]
+                        || self.n_lo > (nhi[0][i] + hyz) + nhi[2][k])
+                    {
+                        mask |= 1u64 << (i + 4 * j + 16 * k);
+                    }
+                }
+            }
+        }
+        mask
+    }
+
+    /// For box axis `u`, the pairs `(p, q)` of cells (planes `ps`, `qs`; `p < np`,
+    /// `q < nq`, at most 4 each) on which none of the three edge axes separates, as
+    /// bits `4 q + p`.
+    #[inline(always)]
+    fn pair4(&self, u: usize, ps: &[f64; 8], np: usize, qs: &[f64; 8], nq: usize) -> u32 {
+        let mut sep = 0u32;
+        for e in 0..3 {
+            let (a, b, lo, hi) = (self.ea[u][e], self.eb[u][e], self.elo[u][e], self.ehi[u][e]);
+            // The same choices as `span`: cell `p` spans `a * ps[p + sa]` (low) to
+            // `a * ps[p + 1 - sa]` (high). Products are computed where needed (the
+            // same product twice gives the same bits).
+            let sa = usize::from(a < 0.0); // never NaN here
+            let sb = usize::from(b < 0.0);
+            let la = |p: usize| a * ps[(p + sa) & 7];
+            let ha = |p: usize| a * ps[(p + 1 - sa) & 7];
+            let lb = |q: usize| b * qs[(q + sb) & 7];
+            let hb = |q: usize| b * qs[(q + 1 - sb) & 7];
+            // The sums are monotone in `p` and `q` (so is `f64` rounding): when the
+            // extreme cells of the block pass, every cell does; in a row, the
+            // separated cells are a run from the extreme end.
+            let (pl, ph) = if sa == 0 { (np - 1, 0) } else { (0, np - 1) };
+            let (ql, qh) = if sb == 0 { (nq - 1, 0) } else { (0, nq - 1) };
+            // The same sums as `edge_passes`.
+            if hi < la(pl) + lb(ql) {
+                for q in 0..nq {
+                    let lbq = lb(q);
+                    let mut p = pl;
+                    while hi < la(p) + lbq {
+                        sep |= 1 << (4 * q + p);
+                        if p == ph {
+                            break;
+                        }
+                        p = if sa == 0 { p - 1 } else { p + 1 };
+                    }
+                }
+            }
+            if lo > ha(ph) + hb(qh) {
+                for q in 0..nq {
+                    let hbq = hb(q);
+                    let mut p = ph;
+                    while lo > ha(p) + hbq {
+                        sep |= 1 << (4 * q + p);
+                        if p == pl {
+                            break;
+                        }
+                        p = if sa == 0 { p + 1 } else { p - 1 };
+                    }
+                }
+            }
+        }
+        !sep
+    }
+
+    /// The unit normal's contribution `n̂[a] · (c - v0[a])` of coordinate `c` on axis
+    /// `a` to [`signed_distance`](Self::signed_distance) (which is
+    /// `(x + y) + z` of these, rounded to `f32`).
+    #[inline(always)]
+    pub(crate) fn sdf_term(&self, a: usize, c: f32) -> f64 {
+        self.n_unit[a] * (f64::from(c) - self.v0[a])
+    }
+
+    #[inline(always)]
+    fn edges_pass(&self, u: usize, p0: f64, p1: f64, q0: f64, q1: f64) -> bool {
+        let (ea, eb, elo, ehi) = (&self.ea[u], &self.eb[u], &self.elo[u], &self.ehi[u]);
+        edge_passes(ea[0], eb[0], elo[0], ehi[0], p0, p1, q0, q1)
+            && edge_passes(ea[1], eb[1], elo[1], ehi[1], p0, p1, q0, q1)
+            && edge_passes(ea[2], eb[2], elo[2], ehi[2], p0, p1, q0, q1)
+    }
+}
+
+/// `a · b`, summed in the fixed order `(x + y) + z` used for every projection.
+#[inline(always)]
+fn dot(a: DVec3, b: DVec3) -> f64 {
+    (a.x * b.x + a.y * b.y) + a.z * b.z
+}
+
+/// Smallest and largest of three values (never NaN here: finite `f32` input cannot
+/// overflow `f64` in these formulas).
+#[inline(always)]
+fn min_max3(a: f64, b: f64, c: f64) -> (f64, f64) {
+    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+    (if c < lo { c } else { lo }, if c > hi { c } else { hi })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Triangle {
+        Triangle::new(Vec3::from(a), Vec3::from(b), Vec3::from(c))
+    }
+
+    const UNIT: Aabb = Aabb::new(Vec3::ZERO, Vec3::ONE);
+
+    #[test]
+    fn inside_crossing_touching_apart() {
+        let inside = tri([0.2, 0.2, 0.5], [0.8, 0.2, 0.5], [0.5, 0.8, 0.5]);
+        assert!(intersection_test_aabb_triangle(&UNIT, &inside));
+        // A big triangle cutting through the box, no vertex inside.
+        let through = tri([-5.0, -5.0, 0.5], [5.0, -5.0, 0.5], [0.0, 5.0, 0.5]);
+        assert!(intersection_test_aabb_triangle(&UNIT, &through));
+        // Touching a corner with a vertex.
+        let corner = tri([1.0, 1.0, 1.0], [2.0, 1.0, 1.0], [1.0, 2.0, 1.0]);
+        assert!(intersection_test_aabb_triangle(&UNIT, &corner));
+        // Lying in the top face plane, overlapping the face.
+        let in_face = tri([-1.0, -1.0, 1.0], [3.0, -1.0, 1.0], [-1.0, 3.0, 1.0]);
+        assert!(intersection_test_aabb_triangle(&UNIT, &in_face));
+        // Just above the top face.
+        let above = tri(
+            [-1.0, -1.0, 1.0001],
+            [3.0, -1.0, 1.0001],
+            [-1.0, 3.0, 1.0001],
+        );
+        assert!(!intersection_test_aabb_triangle(&UNIT, &above));
+    }
+
+    #[test]
+    fn edge_axis_separates() {
+        // The bounding boxes overlap and the plane crosses the box, but the triangle's
+        // hypotenuse passes beside the corner (1, 1, z): only an edge axis separates.
+        let t = tri([0.5, 3.0, 0.5], [3.0, 0.5, 0.5], [3.0, 3.0, 0.5]);
+        assert!(!intersection_test_aabb_triangle(&UNIT, &t));
+        // The hypotenuse through the corner edge exactly: touching.
+        let t = tri([0.0, 2.0, 0.5], [2.0, 0.0, 0.5], [3.0, 3.0, 0.5]);
+        assert!(intersection_test_aabb_triangle(&UNIT, &t));
+    }
+
+    #[test]
+    fn plane_separates() {
+        // A tilted plane passing just beyond the corner (1, 1, 1).
+        let t = tri([3.1, 0.0, 0.0], [0.0, 3.1, 0.0], [0.0, 0.0, 3.1]);
+        assert!(!intersection_test_aabb_triangle(&UNIT, &t));
+        let t = tri([3.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 3.0]);
+        assert!(intersection_test_aabb_triangle(&UNIT, &t));
+    }
+
+    #[test]
+    fn degenerate_is_a_segment_or_point() {
+        let point_in = tri([0.5; 3], [0.5; 3], [0.5; 3]);
+        let point_out = tri([1.5; 3], [1.5; 3], [1.5; 3]);
+        assert!(intersection_test_aabb_triangle(&UNIT, &point_in));
+        assert!(!intersection_test_aabb_triangle(&UNIT, &point_out));
+        // Segment crossing the box diagonally (collinear vertices).
+        let seg = tri([-1.0, -1.0, 0.5], [0.5, 0.5, 0.5], [2.0, 2.0, 0.5]);
+        assert!(intersection_test_aabb_triangle(&UNIT, &seg));
+        // Segment passing beside a corner edge: a triangle with a third vertex would hit.
+        let seg = tri([0.0, 2.1, 0.5], [2.1, 0.0, 0.5], [1.05, 1.05, 0.5]);
+        assert!(!intersection_test_aabb_triangle(&UNIT, &seg));
+        assert!(TriangleSat::new(&seg).is_some_and(|s| s.is_degenerate()));
+    }
+
+    #[test]
+    fn non_finite_overlaps_nothing() {
+        let big = Aabb::new(Vec3::splat(-1e30), Vec3::splat(1e30));
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            let t = tri([0.5, 0.5, 0.5], [bad, 0.5, 0.5], [0.5, 0.6, 0.5]);
+            assert!(!intersection_test_aabb_triangle(&big, &t));
+            let ok = tri([0.5, 0.5, 0.5], [0.6, 0.5, 0.5], [0.5, 0.6, 0.5]);
+            let bad_box = Aabb::new(Vec3::new(0.0, bad, 0.0), Vec3::ONE);
+            assert!(!intersection_test_aabb_triangle(&bad_box, &ok));
+        }
+        let inverted = Aabb::new(Vec3::ONE, Vec3::ZERO);
+        let ok = tri([-1.0, -1.0, 0.5], [3.0, -1.0, 0.5], [-1.0, 3.0, 0.5]);
+        assert!(!intersection_test_aabb_triangle(&inverted, &ok));
+    }
+
+    #[test]
+    fn huge_finite_coordinates_do_not_overflow() {
+        let m = f32::MAX;
+        let t = tri([-m, -m, 0.5], [m, -m, 0.5], [0.0, m, 0.5]);
+        assert!(intersection_test_aabb_triangle(&UNIT, &t));
+        let t = tri([-m, -m, 2.0], [m, -m, 2.0], [0.0, m, 2.0]);
+        assert!(!intersection_test_aabb_triangle(&UNIT, &t));
+    }
+}

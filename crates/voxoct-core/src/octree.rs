@@ -1,0 +1,1281 @@
+//! The sparse octree of marked leaves.
+
+use glam::{UVec3, Vec3};
+
+use crate::error::OctreeError;
+use crate::geometry::{Aabb, Cell, GridSpec, Real, Triangle};
+use crate::intersection_test_aabb_triangle::{TriangleSat, intersection_test_aabb_triangle};
+
+/// The deepest octree supported: `2^21` leaves per axis (Morton keys fit in 63 bits and
+/// grid coordinates stay exact in `f32`).
+pub const MAX_DEPTH: u32 = 21;
+
+/// Depth of the dense top level: the root is split into `8^SPLIT_DEPTH` regions, each
+/// an independent sparse subtree (this is the unit of parallel insertion).
+const SPLIT_DEPTH: u32 = 3;
+/// Empty child / free-list terminator / invalid brick.
+const NONE: u32 = u32::MAX;
+/// Payload block capacities (entries) of a brick, smallest first.
+const CLASSES: [u32; 10] = [2, 4, 6, 8, 12, 16, 24, 32, 48, 64];
+/// Brick class of a brick without a payload block.
+const NO_BLOCK: u8 = u8::MAX;
+
+/// What one leaf holds.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Payload {
+    hits: u32,
+    sdf: f32,
+}
+
+/// 4×4×4 leaves: occupancy bits in Morton order and a packed payload block.
+#[derive(Debug, Clone, Copy)]
+struct Brick {
+    mask: u64,
+    /// First payload entry of the block (meaningless while `class == NO_BLOCK`).
+    offset: u32,
+    /// Index into [`CLASSES`], or [`NO_BLOCK`].
+    class: u8,
+}
+
+/// One of the `8^SPLIT_DEPTH` subtrees below the dense top level.
+#[derive(Debug, Clone)]
+struct Region {
+    /// Interior nodes; `nodes[0]` is the region's root when the region has more than
+    /// one brick. Entries are child node indices or, on the lowest interior level,
+    /// brick indices; [`NONE`] for an empty child.
+    nodes: Vec<[u32; 8]>,
+    bricks: Vec<Brick>,
+    /// Packed payload blocks, one per brick, plus freed blocks awaiting reuse.
+    payload: Vec<Payload>,
+    /// Heads of the free lists of each block class (the link lives in `hits`).
+    free: [u32; CLASSES.len()],
+    /// Direct-mapped cache of recently used bricks, keyed by the brick coordinates'
+    /// parity so that neighbouring bricks never evict each other.
+    cache_key: [u64; 8],
+    cache_val: [u32; 8],
+}
+
+/// Geometry shared by all regions of one octree.
+#[derive(Debug, Clone, Copy)]
+struct Layout {
+    /// The leaf grid.
+    grid: GridSpec,
+    /// `depth - split`: leaf coordinate `>> region_shift` is the region coordinate.
+    region_shift: u32,
+    /// Interior levels of a region's brick tree.
+    levels: u32,
+}
+
+/// A sparse octree over a cubic root whose leaves are marked by inserted triangles.
+///
+/// See the [crate documentation](crate) for the semantics and the storage layout.
+#[derive(Debug, Clone)]
+pub struct Octree {
+    min: Vec3,
+    edge: Real,
+    leaf_size: Real,
+    depth: u32,
+    leaf_edge: Real,
+    layout: Layout,
+    /// Indexed by the Morton code of the region coordinates.
+    regions: Vec<Option<Box<Region>>>,
+}
+
+impl Octree {
+    /// An empty octree whose root is the cube `min ..= min + edge`, subdivided down to
+    /// the first depth whose node edge is `<= leaf_size`.
+    ///
+    /// # Errors
+    ///
+    /// [`OctreeError::NonFinite`] / [`OctreeError::NonPositive`] for bad values,
+    /// [`OctreeError::LeafLargerThanRoot`], [`OctreeError::TooDeep`] beyond
+    /// [`MAX_DEPTH`], and [`OctreeError::LeafBelowPrecision`] when the leaves are too
+    /// small for `f32` coordinates at the root's position.
+    pub fn new(min: Vec3, edge: Real, leaf_size: Real) -> Result<Self, OctreeError> {
+        for (name, value) in [
+            ("min.x", min.x),
+            ("min.y", min.y),
+            ("min.z", min.z),
+            ("edge", edge),
+            ("leaf_size", leaf_size),
+        ] {
+            if !value.is_finite() {
+                return Err(OctreeError::NonFinite { name, value });
+            }
+        }
+        for (name, value) in [("edge", edge), ("leaf_size", leaf_size)] {
+            if value <= 0.0 {
+                return Err(OctreeError::NonPositive { name, value });
+            }
+        }
+        if leaf_size > edge {
+            return Err(OctreeError::LeafLargerThanRoot { leaf_size, edge });
+        }
+        let max = min + Vec3::splat(edge);
+        if let Some(value) = max.to_array().into_iter().find(|v| !v.is_finite()) {
+            return Err(OctreeError::NonFinite {
+                name: "min + edge",
+                value,
+            });
+        }
+        let mut depth = 0;
+        while depth <= MAX_DEPTH && edge_at(edge, depth) > leaf_size {
+            depth += 1;
+        }
+        if depth > MAX_DEPTH {
+            let needed = (f64::from(edge) / f64::from(leaf_size)).log2().ceil() as u32;
+            return Err(OctreeError::TooDeep {
+                depth: needed.max(MAX_DEPTH + 1),
+                max: MAX_DEPTH,
+            });
+        }
+        let leaf_edge = edge_at(edge, depth);
+        let magnitude = min.abs().max(max.abs()).max_element();
+        if !leaf_edge.is_normal() || leaf_edge < magnitude * (1.0 / (1u32 << 20) as Real) {
+            return Err(OctreeError::LeafBelowPrecision {
+                leaf_edge,
+                magnitude,
+            });
+        }
+        let split = depth.min(SPLIT_DEPTH);
+        let region_shift = depth - split;
+        let layout = Layout {
+            grid: GridSpec {
+                origin: min,
+                cell: leaf_edge,
+                resolution: 1 << depth,
+            },
+            region_shift,
+            levels: region_shift.saturating_sub(2),
+        };
+        let mut regions = Vec::new();
+        regions.resize_with(1 << (3 * split), || None);
+        Ok(Self {
+            min,
+            edge,
+            leaf_size,
+            depth,
+            leaf_edge,
+            layout,
+            regions,
+        })
+    }
+
+    /// An empty octree whose cubic root encloses `bounds`: centred on them, with an edge
+    /// of `leaf_size · 2^k` for the smallest `k` that fits, so that the real leaf edge
+    /// is exactly `leaf_size`.
+    ///
+    /// # Errors
+    ///
+    /// [`OctreeError::InvalidBounds`] when `bounds.min > bounds.max` on an axis, and
+    /// the errors of [`Octree::new`].
+    pub fn enclosing(bounds: Aabb, leaf_size: Real) -> Result<Self, OctreeError> {
+        let names = [
+            ("bounds.min.x", bounds.min.x),
+            ("bounds.min.y", bounds.min.y),
+            ("bounds.min.z", bounds.min.z),
+            ("bounds.max.x", bounds.max.x),
+            ("bounds.max.y", bounds.max.y),
+            ("bounds.max.z", bounds.max.z),
+            ("leaf_size", leaf_size),
+        ];
+        for (name, value) in names {
+            if !value.is_finite() {
+                return Err(OctreeError::NonFinite { name, value });
+            }
+        }
+        if leaf_size <= 0.0 {
+            return Err(OctreeError::NonPositive {
+                name: "leaf_size",
+                value: leaf_size,
+            });
+        }
+        for (i, axis) in ['x', 'y', 'z'].into_iter().enumerate() {
+            if bounds.min[i] > bounds.max[i] {
+                return Err(OctreeError::InvalidBounds {
+                    axis,
+                    min: bounds.min[i],
+                    max: bounds.max[i],
+                });
+            }
+        }
+        let extent = (bounds.max - bounds.min).max_element();
+        let mut edge = leaf_size;
+        let mut depth = 0;
+        loop {
+            if edge >= extent {
+                let min = bounds.center() - Vec3::splat(edge * 0.5);
+                if min.cmple(bounds.min).all() && (min + Vec3::splat(edge)).cmpge(bounds.max).all()
+                {
+                    return Self::new(min, edge, leaf_size);
+                }
+            }
+            edge *= 2.0;
+            depth += 1;
+            if depth > MAX_DEPTH || !edge.is_finite() {
+                return Err(OctreeError::TooDeep {
+                    depth,
+                    max: MAX_DEPTH,
+                });
+            }
+        }
+    }
+
+    /// Depth of the leaves (the root is depth 0).
+    #[inline]
+    #[must_use]
+    pub fn depth(&self) -> u32 {
+        self.depth
+    }
+
+    /// The real leaf edge, `edge / 2^depth` (`<= leaf_size`).
+    #[inline]
+    #[must_use]
+    pub fn leaf_edge(&self) -> Real {
+        self.leaf_edge
+    }
+
+    /// The leaf size the octree was built with (an upper bound of [`leaf_edge`](Self::leaf_edge)).
+    #[inline]
+    #[must_use]
+    pub fn leaf_size(&self) -> Real {
+        self.leaf_size
+    }
+
+    /// Edge of the root cube, metres.
+    #[inline]
+    #[must_use]
+    pub fn edge(&self) -> Real {
+        self.edge
+    }
+
+    /// The root cube (closed).
+    #[inline]
+    #[must_use]
+    pub fn root(&self) -> Aabb {
+        Aabb::cube(self.min, self.edge)
+    }
+
+    /// Leaves per axis, `2^depth`.
+    #[inline]
+    #[must_use]
+    pub fn resolution(&self) -> u32 {
+        1 << self.depth
+    }
+
+    /// The grid of the nodes at `depth` (any depth, also deeper than the leaves).
+    #[inline]
+    #[must_use]
+    pub fn grid(&self, depth: u32) -> GridSpec {
+        let depth = depth.min(31);
+        GridSpec {
+            origin: self.min,
+            cell: edge_at(self.edge, depth),
+            resolution: 1 << depth,
+        }
+    }
+
+    /// The grid of the leaves, `grid(depth())`.
+    #[inline]
+    #[must_use]
+    pub fn leaf_grid(&self) -> GridSpec {
+        self.layout.grid
+    }
+
+    /// Whether no leaf is marked.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.regions.iter().flatten().all(|r| r.bricks.is_empty())
+    }
+
+    /// Marks every leaf that the closed triangle overlaps (see
+    /// [`intersection_test_aabb_triangle`]) and adds the triangle to its payload.
+    /// Returns how many leaves it overlapped (already marked ones included).
+    ///
+    /// Degenerate triangles (zero area) and triangles with a non-finite coordinate mark
+    /// nothing and return 0; parts outside the root are ignored.
+    pub fn insert(&mut self, tri: &Triangle) -> usize {
+        let Some(sat) = TriangleSat::new(tri) else {
+            return 0;
+        };
+        if sat.is_degenerate() {
+            return 0;
+        }
+        let Some((lo, hi)) = self.layout.candidates(&sat) else {
+            return 0;
+        };
+        let lay = self.layout;
+        let (rlo, rhi) = (lo >> lay.region_shift, hi >> lay.region_shift);
+        let mut count = 0;
+        for rz in rlo.z..=rhi.z {
+            for ry in rlo.y..=rhi.y {
+                for rx in rlo.x..=rhi.x {
+                    let rc = UVec3::new(rx, ry, rz);
+                    let ri = morton3(rc) as usize;
+                    let (base, last) = lay.region_span(rc);
+                    let region = self.regions[ri].get_or_insert_with(|| Box::new(Region::new()));
+                    count += region.insert(&lay, base, &sat, lo.max(base), hi.min(last));
+                }
+            }
+        }
+        count
+    }
+
+    /// Inserts every triangle, in order (see [`insert`](Self::insert)).
+    pub fn insert_all(&mut self, tris: &[Triangle]) {
+        for t in tris {
+            self.insert(t);
+        }
+    }
+
+    /// Inserts the triangles on all threads of the current rayon pool. The result is
+    /// identical to [`insert_all`](Self::insert_all): the same leaves, the same hits
+    /// and bit-identical `sdf_sum`s.
+    ///
+    /// The root is split into `8^3` regions (`8^depth` when `depth < 3`); each worker
+    /// owns whole regions and inserts, in input order, the triangles whose bounding
+    /// box reaches its region (a triangle spanning regions is handled by each). Every
+    /// leaf is therefore written by one worker, in input order. Speed-up needs the data
+    /// to span several regions (a root edge of at most ~8 times the object's size).
+    #[cfg(feature = "parallel")]
+    pub fn par_insert(&mut self, tris: &[Triangle]) {
+        use rayon::prelude::*;
+
+        // Triangle indices are `u32`: absurdly long inputs go in consecutive batches
+        // (the same result, input order is kept).
+        if tris.len() > u32::MAX as usize {
+            for part in tris.chunks(u32::MAX as usize) {
+                self.par_insert(part);
+            }
+            return;
+        }
+
+        let lay = self.layout;
+        let n_regions = self.regions.len();
+        // Partition triangle indices by region, in input order: chunks of the input in
+        // parallel, then each region's lists concatenated in chunk order.
+        let chunk = tris
+            .len()
+            .div_ceil(4 * rayon::current_num_threads())
+            .max(1024);
+        let parts: Vec<Vec<Vec<u32>>> = tris
+            .par_chunks(chunk)
+            .enumerate()
+            .map(|(c, part)| {
+                let mut lists: Vec<Vec<u32>> = vec![Vec::new(); n_regions];
+                for (k, t) in part.iter().enumerate() {
+                    let i = (c * chunk + k) as u32;
+                    if !t.is_finite() {
+                        continue;
+                    }
+                    let bb = t.aabb();
+                    let Some((lo, hi)) = lay.candidates_of_box(bb.min, bb.max) else {
+                        continue;
+                    };
+                    let (rlo, rhi) = (lo >> lay.region_shift, hi >> lay.region_shift);
+                    for rz in rlo.z..=rhi.z {
+                        for ry in rlo.y..=rhi.y {
+                            for rx in rlo.x..=rhi.x {
+                                lists[morton3(UVec3::new(rx, ry, rz)) as usize].push(i);
+                            }
+                        }
+                    }
+                }
+                lists
+            })
+            .collect();
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); n_regions];
+        for (ri, list) in lists.iter_mut().enumerate() {
+            let len = parts.iter().map(|p| p[ri].len()).sum();
+            if len > 0 {
+                list.reserve_exact(len);
+                for p in &parts {
+                    list.extend_from_slice(&p[ri]);
+                }
+            }
+        }
+        drop(parts);
+        let mut work: Vec<(usize, Box<Region>, Vec<u32>)> = lists
+            .into_iter()
+            .enumerate()
+            .filter(|(_, l)| !l.is_empty())
+            .map(|(ri, l)| {
+                let region = self.regions[ri]
+                    .take()
+                    .unwrap_or_else(|| Box::new(Region::new()));
+                (ri, region, l)
+            })
+            .collect();
+        // Biggest first, for a better balance.
+        work.sort_by_key(|w| std::cmp::Reverse(w.2.len()));
+        work.par_iter_mut().for_each(|(ri, region, list)| {
+            let rc = demorton3(*ri as u64);
+            let (base, last) = lay.region_span(rc);
+            for &i in list.iter() {
+                let Some(sat) = TriangleSat::new(&tris[i as usize]) else {
+                    continue;
+                };
+                if sat.is_degenerate() {
+                    continue;
+                }
+                if let Some((lo, hi)) = lay.candidates(&sat) {
+                    region.insert(&lay, base, &sat, lo.max(base), hi.min(last));
+                }
+            }
+        });
+        for (ri, region, _) in work {
+            if !region.bricks.is_empty() {
+                self.regions[ri] = Some(region);
+            }
+        }
+    }
+
+    /// The thesis's Algorithm 1, kept as the reference: test the node's box against the
+    /// triangle, recurse into the 8 children of an overlapped node, mark the overlapped
+    /// leaves. [`insert`](Self::insert) marks exactly the same leaves with the same
+    /// payload (the tests check it); this one is much slower.
+    pub fn insert_reference(&mut self, tri: &Triangle) -> usize {
+        let Some(sat) = TriangleSat::new(tri) else {
+            return 0;
+        };
+        if sat.is_degenerate() {
+            return 0;
+        }
+        let mut leaves = Vec::new();
+        self.descend(0, UVec3::ZERO, tri, &mut leaves);
+        let grid = self.layout.grid;
+        for &c in &leaves {
+            self.add_cell(c, 1, sat.signed_distance(grid.cell_center(c)));
+        }
+        leaves.len()
+    }
+
+    fn descend(&self, depth: u32, coord: UVec3, tri: &Triangle, out: &mut Vec<UVec3>) {
+        if !intersection_test_aabb_triangle(&self.grid(depth).cell_aabb(coord), tri) {
+            return;
+        }
+        if depth == self.depth {
+            out.push(coord);
+            return;
+        }
+        for oct in 0..8u32 {
+            let child = coord * 2 + UVec3::new(oct & 1, (oct >> 1) & 1, oct >> 2);
+            self.descend(depth + 1, child, tri, out);
+        }
+    }
+
+    /// Adds `hits` and `sdf` to the leaf `coord` (which must be inside the grid),
+    /// marking it when new.
+    fn add_cell(&mut self, coord: UVec3, hits: u32, sdf: f32) {
+        let lay = self.layout;
+        let rc = coord >> lay.region_shift;
+        let (base, _) = lay.region_span(rc);
+        let region =
+            self.regions[morton3(rc) as usize].get_or_insert_with(|| Box::new(Region::new()));
+        region.mark(&lay, coord - base, hits, sdf);
+    }
+
+    /// Every marked leaf, in increasing Morton (Z-order) code of its coordinates (bits
+    /// interleaved as `…z1 y1 x1 z0 y0 x0`), which is also depth-first octree order with
+    /// children in octant order `x + 2y + 4z`.
+    pub fn leaves(&self) -> impl Iterator<Item = Cell> + '_ {
+        let lay = self.layout;
+        self.regions
+            .iter()
+            .enumerate()
+            .filter_map(|(ri, r)| r.as_deref().map(|r| (ri, r)))
+            .flat_map(move |(ri, region)| {
+                let (base, _) = lay.region_span(demorton3(ri as u64));
+                region
+                    .bricks_in_order(lay.levels)
+                    .into_iter()
+                    .flat_map(move |(bc, bi)| {
+                        let brick = region.bricks[bi as usize];
+                        let origin = base + bc * 4;
+                        BitIter(brick.mask).enumerate().map(move |(rank, bit)| {
+                            let p = region.payload[brick.offset as usize + rank];
+                            Cell {
+                                coord: origin + demorton2(bit),
+                                hits: p.hits,
+                                sdf_sum: p.sdf,
+                            }
+                        })
+                    })
+            })
+    }
+
+    /// The marked nodes at `depth` (level of detail), in Morton order: a node is marked
+    /// when any leaf below it is; its `hits` and `sdf_sum` are the sums over those
+    /// leaves (in Morton order). The sdf is then only approximate: the leaves' distances
+    /// are measured from their own centres, not from the node's. `depth >= depth()`
+    /// gives the leaves.
+    #[must_use]
+    pub fn cells_at_depth(&self, depth: u32) -> Vec<Cell> {
+        if depth >= self.depth {
+            return self.leaves().collect();
+        }
+        let shift = self.depth - depth;
+        let mut out: Vec<Cell> = Vec::new();
+        for leaf in self.leaves() {
+            let coord = leaf.coord >> shift;
+            match out.last_mut() {
+                Some(last) if last.coord == coord => {
+                    last.hits = last.hits.saturating_add(leaf.hits);
+                    last.sdf_sum += leaf.sdf_sum;
+                }
+                _ => out.push(Cell { coord, ..leaf }),
+            }
+        }
+        out
+    }
+
+    /// The leaf at `coord`, when marked.
+    #[must_use]
+    pub fn get(&self, coord: UVec3) -> Option<Cell> {
+        let lay = self.layout;
+        if coord.cmpge(UVec3::splat(lay.grid.resolution)).any() {
+            return None;
+        }
+        let rc = coord >> lay.region_shift;
+        let (base, _) = lay.region_span(rc);
+        let region = self.regions[morton3(rc) as usize].as_deref()?;
+        let local = coord - base;
+        let bi = region.find_brick(local >> 2, lay.levels)?;
+        let brick = region.bricks[bi as usize];
+        let m = 1u64 << morton2(local & UVec3::splat(3));
+        if brick.mask & m == 0 {
+            return None;
+        }
+        let rank = (brick.mask & (m - 1)).count_ones() as usize;
+        let p = region.payload[brick.offset as usize + rank];
+        Some(Cell {
+            coord,
+            hits: p.hits,
+            sdf_sum: p.sdf,
+        })
+    }
+
+    /// The thesis's value at point `p`: 1.0 when a marked leaf contains `p`, 0.0 when
+    /// none does or `p` is outside the root (or not finite). Leaves are closed boxes: a
+    /// point on a face shared by several leaves takes the value of the marked one.
+    #[must_use]
+    pub fn value_at(&self, p: Vec3) -> Real {
+        let g = self.layout.grid;
+        if !p.is_finite() {
+            return 0.0;
+        }
+        let mut ranges = [(0u32, 0u32); 3];
+        for (a, range) in ranges.iter_mut().enumerate() {
+            match cell_range_1d(g.origin[a], g.cell, g.resolution, p[a], p[a]) {
+                Some(r) => *range = r,
+                None => return 0.0,
+            }
+        }
+        for z in ranges[2].0..=ranges[2].1 {
+            for y in ranges[1].0..=ranges[1].1 {
+                for x in ranges[0].0..=ranges[0].1 {
+                    if self.get(UVec3::new(x, y, z)).is_some() {
+                        return 1.0;
+                    }
+                }
+            }
+        }
+        0.0
+    }
+
+    /// Number of marked leaves.
+    #[must_use]
+    pub fn leaf_count(&self) -> usize {
+        self.regions
+            .iter()
+            .flatten()
+            .flat_map(|r| r.bricks.iter())
+            .map(|b| b.mask.count_ones() as usize)
+            .sum()
+    }
+
+    /// Number of nodes of the sparse octree at all depths, root and leaves included:
+    /// every node with at least one marked leaf below it (`Σ_d cells_at_depth(d).len()`;
+    /// 0 for an empty tree). This is the node count of the thesis's pointer octree, not
+    /// the number of storage records (see [`memory_bytes`](Self::memory_bytes)).
+    #[must_use]
+    pub fn node_count(&self) -> usize {
+        let mut count = 0usize;
+        let mut prev: Option<u64> = None;
+        for leaf in self.leaves() {
+            let m = morton3(leaf.coord);
+            count += match prev {
+                None => self.depth as usize + 1,
+                Some(q) => {
+                    let level = (63 - (m ^ q).leading_zeros()) / 3;
+                    level as usize + 1
+                }
+            };
+            prev = Some(m);
+        }
+        count
+    }
+
+    /// Bytes of all storage the octree holds, spare capacity included: the struct, the
+    /// region table, each region's node pool, brick pool and payload pool.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.regions.capacity() * std::mem::size_of::<Option<Box<Region>>>()
+            + self
+                .regions
+                .iter()
+                .flatten()
+                .map(|r| r.memory_bytes())
+                .sum::<usize>()
+    }
+
+    /// Releases spare capacity of the pools (freed payload blocks stay for reuse).
+    pub fn shrink_to_fit(&mut self) {
+        for r in self.regions.iter_mut().flatten() {
+            r.nodes.shrink_to_fit();
+            r.bricks.shrink_to_fit();
+            r.payload.shrink_to_fit();
+        }
+    }
+
+    /// Adds every leaf of `other` into `self`: the same leaves and hits as inserting
+    /// both triangle sets into one tree; each `sdf_sum` is `self`'s plus `other`'s
+    /// (equal to the one-tree sum up to the order of the float additions).
+    ///
+    /// # Errors
+    ///
+    /// [`OctreeError::RootMismatch`] when the roots differ, [`OctreeError::DepthMismatch`]
+    /// when the depths do; `self` is then unchanged.
+    pub fn merge(&mut self, other: &Octree) -> Result<(), OctreeError> {
+        if self.min != other.min || self.edge != other.edge {
+            return Err(OctreeError::RootMismatch {
+                this: self.root(),
+                other: other.root(),
+            });
+        }
+        if self.depth != other.depth {
+            return Err(OctreeError::DepthMismatch {
+                this: self.depth,
+                other: other.depth,
+            });
+        }
+        for cell in other.leaves() {
+            self.add_cell(cell.coord, cell.hits, cell.sdf_sum);
+        }
+        Ok(())
+    }
+
+    /// Removes every leaf and releases the storage (the octree's root and depth stay).
+    pub fn clear(&mut self) {
+        for r in &mut self.regions {
+            *r = None;
+        }
+    }
+}
+
+impl Extend<Triangle> for Octree {
+    fn extend<I: IntoIterator<Item = Triangle>>(&mut self, iter: I) {
+        for t in iter {
+            self.insert(&t);
+        }
+    }
+}
+
+impl<'a> Extend<&'a Triangle> for Octree {
+    fn extend<I: IntoIterator<Item = &'a Triangle>>(&mut self, iter: I) {
+        for t in iter {
+            self.insert(t);
+        }
+    }
+}
+
+/// `edge / 2^depth`, exact.
+#[inline]
+fn edge_at(edge: Real, depth: u32) -> Real {
+    edge / (1u64 << depth) as Real
+}
+
+impl GridSpec {
+    /// Plane `i` on axis `a`: the same value as `corner(..)[a]`.
+    #[inline]
+    fn plane(&self, a: usize, i: u32) -> Real {
+        self.origin[a] + i as Real * self.cell
+    }
+}
+
+/// On one axis of a grid (planes `o + i * cell`, `i = 0..=res`), the cells `a..=b` whose
+/// closed extent meets `[lo, hi]`; `None` when the interval misses the grid.
+#[inline]
+fn cell_range_1d(o: Real, cell: Real, res: u32, lo: Real, hi: Real) -> Option<(u32, u32)> {
+    // The same expression as `GridSpec::corner`, component-wise.
+    let plane = |i: u32| o + i as Real * cell;
+    if hi < o || lo > plane(res) || lo.is_nan() || hi.is_nan() {
+        return None;
+    }
+    let last = res - 1;
+    // Truncating guesses (no libm floor); the loops make them exact.
+    let guess = |v: Real| (((v - o) / cell) as i64).clamp(0, i64::from(last)) as u32;
+    // Each loop sits behind its first test so that the compiler does not turn it into
+    // a vectorised search (which costs far more than the usual zero or one step).
+    let mut a = guess(lo);
+    if a < last && plane(a + 1) < lo {
+        while a < last && plane(a + 1) < lo {
+            a += 1;
+        }
+    } else if a > 0 && plane(a) >= lo {
+        while a > 0 && plane(a) >= lo {
+            a -= 1;
+        }
+    }
+    let mut b = guess(hi);
+    if b > 0 && plane(b) > hi {
+        while b > 0 && plane(b) > hi {
+            b -= 1;
+        }
+    } else if b < last && plane(b + 1) <= hi {
+        while b < last && plane(b + 1) <= hi {
+            b += 1;
+        }
+    }
+    Some((a, b))
+}
+
+impl Layout {
+    /// The leaf cells whose closed boxes meet the closed box `bmin..=bmax`, clamped to
+    /// the grid; `None` when the box misses the root. Exactly the cells whose boxes
+    /// pass the three box-normal axes of the overlap test.
+    #[inline]
+    fn candidates_of_box(&self, bmin: Vec3, bmax: Vec3) -> Option<(UVec3, UVec3)> {
+        let g = &self.grid;
+        let (x0, x1) = cell_range_1d(g.origin.x, g.cell, g.resolution, bmin.x, bmax.x)?;
+        let (y0, y1) = cell_range_1d(g.origin.y, g.cell, g.resolution, bmin.y, bmax.y)?;
+        let (z0, z1) = cell_range_1d(g.origin.z, g.cell, g.resolution, bmin.z, bmax.z)?;
+        Some((UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1)))
+    }
+
+    #[inline]
+    fn candidates(&self, sat: &TriangleSat) -> Option<(UVec3, UVec3)> {
+        self.candidates_of_box(sat.bmin, sat.bmax)
+    }
+
+    /// First and last leaf coordinates of region `rc`.
+    #[inline]
+    fn region_span(&self, rc: UVec3) -> (UVec3, UVec3) {
+        let base = rc << self.region_shift;
+        (base, base + UVec3::splat((1 << self.region_shift) - 1))
+    }
+}
+
+impl Region {
+    fn new() -> Self {
+        Self {
+            nodes: Vec::new(),
+            bricks: Vec::new(),
+            payload: Vec::new(),
+            free: [NONE; CLASSES.len()],
+            cache_key: [u64::MAX; 8],
+            cache_val: [NONE; 8],
+        }
+    }
+
+    fn memory_bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.nodes.capacity() * std::mem::size_of::<[u32; 8]>()
+            + self.bricks.capacity() * std::mem::size_of::<Brick>()
+            + self.payload.capacity() * std::mem::size_of::<Payload>()
+    }
+
+    /// Marks the cells of `lo..=hi` (inside this region, whose first leaf is `base`)
+    /// that the triangle overlaps; returns how many.
+    fn insert(
+        &mut self,
+        lay: &Layout,
+        base: UVec3,
+        sat: &TriangleSat,
+        lo: UVec3,
+        hi: UVec3,
+    ) -> usize {
+        let grid = lay.grid;
+        let n = hi - lo + UVec3::ONE;
+        if n.max_element() <= 4 {
+            let (mut mask, terms) = small_block(&grid, sat, lo, n);
+            let count = mask.count_ones() as usize;
+            // Per axis: brick coordinate and Morton bits of each cell of the block.
+            let l0 = lo - base;
+            let mut bcs = [[0u32; 4]; 3];
+            let mut bits = [[0u32; 4]; 3];
+            for a in 0..3 {
+                for t in 0..4 {
+                    let l = l0[a] + t as u32;
+                    bcs[a][t] = l >> 2;
+                    bits[a][t] = ((l & 1) | (l & 2) << 2) << a;
+                }
+            }
+            while mask != 0 {
+                let bit = mask.trailing_zeros();
+                mask &= mask - 1;
+                let (i, j, k) = (
+                    (bit & 3) as usize,
+                    ((bit >> 2) & 3) as usize,
+                    (bit >> 4) as usize,
+                );
+                let sdf = ((terms[0][i] + terms[1][j]) + terms[2][k]) as f32;
+                let bc = UVec3::new(bcs[0][i], bcs[1][j], bcs[2][k]);
+                let b = self.brick_at(bc, lay.levels);
+                self.add_known(b, bits[0][i] | bits[1][j] | bits[2][k], 1, sdf);
+            }
+            return count;
+        }
+        let mut count = 0;
+        visit_cells(&grid, sat, lo, hi, &mut |c, sdf| {
+            count += 1;
+            self.mark(lay, c - base, 1, sdf);
+        });
+        count
+    }
+
+    /// Adds to the leaf at region-local coordinates `local`.
+    #[inline(always)]
+    fn mark(&mut self, lay: &Layout, local: UVec3, hits: u32, sdf: f32) {
+        let b = self.brick_at(local >> 2, lay.levels);
+        self.add_known(b, morton2(local & UVec3::splat(3)), hits, sdf);
+    }
+
+    /// [`add`](Self::add), with the common case inline: the leaf is already marked.
+    #[inline(always)]
+    fn add_known(&mut self, b: u32, bit: u32, hits: u32, sdf: f32) {
+        let brick = self.bricks[b as usize];
+        let m = 1u64 << bit;
+        if brick.mask & m != 0 {
+            let rank = (brick.mask & (m - 1)).count_ones() as usize;
+            let p = &mut self.payload[brick.offset as usize + rank];
+            p.hits = p.hits.saturating_add(hits);
+            p.sdf += sdf;
+            return;
+        }
+        self.add_new(b, bit, hits, sdf);
+    }
+
+    /// [`add`](Self::add) out of line, for a leaf not yet marked.
+    #[inline(never)]
+    fn add_new(&mut self, b: u32, bit: u32, hits: u32, sdf: f32) {
+        self.add(b, bit, hits, sdf);
+    }
+
+    /// The brick at brick coordinates `bc`, created when missing.
+    #[inline]
+    fn brick_at(&mut self, bc: UVec3, levels: u32) -> u32 {
+        let key = u64::from(bc.x) | u64::from(bc.y) << 21 | u64::from(bc.z) << 42;
+        let slot = ((bc.x & 1) | (bc.y & 1) << 1 | (bc.z & 1) << 2) as usize;
+        if self.cache_key[slot] == key {
+            return self.cache_val[slot];
+        }
+        self.brick_miss(bc, levels, slot, key)
+    }
+
+    /// [`brick_at`](Self::brick_at) when the cache misses.
+    #[inline(never)]
+    fn brick_miss(&mut self, bc: UVec3, levels: u32, slot: usize, key: u64) -> u32 {
+        let b = self.find_or_create_brick(bc, levels);
+        self.cache_key[slot] = key;
+        self.cache_val[slot] = b;
+        b
+    }
+
+    fn new_brick(&mut self) -> u32 {
+        reserve_gently(&mut self.bricks, 1);
+        self.bricks.push(Brick {
+            mask: 0,
+            offset: 0,
+            class: NO_BLOCK,
+        });
+        (self.bricks.len() - 1) as u32
+    }
+
+    fn find_or_create_brick(&mut self, bc: UVec3, levels: u32) -> u32 {
+        if levels == 0 {
+            if self.bricks.is_empty() {
+                self.new_brick();
+            }
+            return 0;
+        }
+        if self.nodes.is_empty() {
+            self.nodes.push([NONE; 8]);
+        }
+        let mut node = 0usize;
+        for level in (0..levels).rev() {
+            let oct = octant(bc, level);
+            let child = self.nodes[node][oct];
+            if level == 0 {
+                if child != NONE {
+                    return child;
+                }
+                let b = self.new_brick();
+                self.nodes[node][oct] = b;
+                return b;
+            }
+            if child == NONE {
+                reserve_gently(&mut self.nodes, 1);
+                self.nodes.push([NONE; 8]);
+                let c = (self.nodes.len() - 1) as u32;
+                self.nodes[node][oct] = c;
+                node = c as usize;
+            } else {
+                node = child as usize;
+            }
+        }
+        NONE // unreachable: the loop returns on level 0
+    }
+
+    fn find_brick(&self, bc: UVec3, levels: u32) -> Option<u32> {
+        if levels == 0 {
+            return (!self.bricks.is_empty()).then_some(0);
+        }
+        let mut node = *self.nodes.first()?;
+        for level in (0..levels).rev() {
+            let child = node[octant(bc, level)];
+            if child == NONE {
+                return None;
+            }
+            if level == 0 {
+                return Some(child);
+            }
+            node = self.nodes[child as usize];
+        }
+        None
+    }
+
+    /// Adds `hits` and `sdf` to bit `bit` of brick `b`.
+    #[inline]
+    fn add(&mut self, b: u32, bit: u32, hits: u32, sdf: f32) {
+        let brick = self.bricks[b as usize];
+        let m = 1u64 << bit;
+        let rank = (brick.mask & (m - 1)).count_ones() as usize;
+        if brick.mask & m != 0 {
+            let p = &mut self.payload[brick.offset as usize + rank];
+            p.hits = p.hits.saturating_add(hits);
+            p.sdf += sdf;
+            return;
+        }
+        let n = brick.mask.count_ones() as usize;
+        let new = Payload { hits, sdf };
+        let off = if brick.class != NO_BLOCK && n < CLASSES[brick.class as usize] as usize {
+            let off = brick.offset as usize;
+            self.payload
+                .copy_within(off + rank..off + n, off + rank + 1);
+            off
+        } else {
+            let class = if brick.class == NO_BLOCK {
+                0
+            } else {
+                brick.class as usize + 1
+            };
+            let off = self.alloc_block(class);
+            if brick.class != NO_BLOCK {
+                let old = brick.offset as usize;
+                self.payload.copy_within(old..old + rank, off);
+                self.payload
+                    .copy_within(old + rank..old + n, off + rank + 1);
+                self.free_block(brick.class as usize, old);
+            }
+            let bk = &mut self.bricks[b as usize];
+            bk.offset = off as u32;
+            bk.class = class as u8;
+            off
+        };
+        self.payload[off + rank] = new;
+        self.bricks[b as usize].mask |= m;
+    }
+
+    fn alloc_block(&mut self, class: usize) -> usize {
+        let head = self.free[class];
+        if head != NONE {
+            self.free[class] = self.payload[head as usize].hits;
+            return head as usize;
+        }
+        let cap = CLASSES[class] as usize;
+        let off = self.payload.len();
+        reserve_gently(&mut self.payload, cap);
+        self.payload.resize(off + cap, Payload::default());
+        off
+    }
+
+    fn free_block(&mut self, class: usize, off: usize) {
+        self.payload[off].hits = self.free[class];
+        self.free[class] = off as u32;
+    }
+
+    /// `(brick coordinates, brick index)` of every brick, in Morton order.
+    fn bricks_in_order(&self, levels: u32) -> Vec<(UVec3, u32)> {
+        let mut out = Vec::with_capacity(self.bricks.len());
+        if levels == 0 {
+            if !self.bricks.is_empty() {
+                out.push((UVec3::ZERO, 0));
+            }
+        } else if !self.nodes.is_empty() {
+            self.collect_bricks(0, levels, UVec3::ZERO, &mut out);
+        }
+        out
+    }
+
+    fn collect_bricks(&self, node: u32, level: u32, coord: UVec3, out: &mut Vec<(UVec3, u32)>) {
+        for (oct, &child) in self.nodes[node as usize].iter().enumerate() {
+            if child == NONE {
+                continue;
+            }
+            let oct = oct as u32;
+            let c = coord * 2 + UVec3::new(oct & 1, (oct >> 1) & 1, oct >> 2);
+            if level == 1 {
+                out.push((c, child));
+            } else {
+                self.collect_bricks(child, level - 1, c, out);
+            }
+        }
+    }
+}
+
+/// Grows `v`'s capacity by about a quarter (not the doubling of `Vec`), so that spare
+/// capacity stays small.
+#[inline]
+fn reserve_gently<T>(v: &mut Vec<T>, extra: usize) {
+    if v.capacity() - v.len() < extra {
+        v.reserve_exact((v.len() / 4).max(extra).max(16));
+    }
+}
+
+/// The common case (triangles about the size of a leaf): the cells of a candidate
+/// block `lo .. lo + n` of at most 4×4×4 cells that the triangle overlaps, as bits
+/// `i + 4 j + 16 k`, and the per-axis terms of their sdf (cell `(i, j, k)` has sdf
+/// `((terms[0][i] + terms[1][j]) + terms[2][k]) as f32`, bit for bit
+/// [`TriangleSat::signed_distance`] of [`GridSpec::cell_center`]).
+#[inline]
+fn small_block(grid: &GridSpec, sat: &TriangleSat, lo: UVec3, n: UVec3) -> (u64, [[f64; 4]; 3]) {
+    // The bounding-box axes hold for every cell of the candidate range; the planes
+    // are the very `f32` corners of `GridSpec::cell_aabb`, widened to f64, padded
+    // with the last plane.
+    let dims = [n.x as usize, n.y as usize, n.z as usize];
+    let mut planes = [[0.0f64; 8]; 3];
+    let mut terms = [[0.0f64; 4]; 3];
+    for a in 0..3 {
+        for (t, p) in planes[a].iter_mut().enumerate().take(5) {
+            *p = f64::from(grid.plane(a, lo[a] + t.min(dims[a]) as u32));
+        }
+        for (t, term) in terms[a].iter_mut().enumerate().take(dims[a]) {
+            // The same expression as `GridSpec::cell_center`, component-wise.
+            let c = grid.origin[a] + ((lo[a] + t as u32) as Real + 0.5) * grid.cell;
+            *term = sat.sdf_term(a, c);
+        }
+    }
+    (sat.block4_mask(&planes, dims), terms)
+}
+
+/// Calls `f(cell, sdf)` for every cell of `lo..=hi` whose closed box the triangle
+/// overlaps, with the signed distance from the cell's centre to the triangle's plane
+/// (bit for bit [`TriangleSat::signed_distance`] of [`GridSpec::cell_center`]).
+/// Large blocks are pruned with the test on the block's box (exact, thanks to the
+/// test's monotonicity and to grid corners that nest bit for bit).
+fn visit_cells(
+    grid: &GridSpec,
+    sat: &TriangleSat,
+    lo: UVec3,
+    hi: UVec3,
+    f: &mut impl FnMut(UVec3, f32),
+) {
+    let n = (hi - lo + UVec3::ONE).as_u64vec3();
+    if n.max_element() <= 4 {
+        let (mut mask, terms) = small_block(grid, sat, lo, (hi - lo) + UVec3::ONE);
+        while mask != 0 {
+            let bit = mask.trailing_zeros();
+            mask &= mask - 1;
+            let (i, j, k) = (
+                (bit & 3) as usize,
+                ((bit >> 2) & 3) as usize,
+                (bit >> 4) as usize,
+            );
+            let sdf = ((terms[0][i] + terms[1][j]) + terms[2][k]) as f32;
+            f(lo + UVec3::new(i as u32, j as u32, k as u32), sdf);
+        }
+        return;
+    }
+    if n.max_element() <= 8 {
+        // Up to 2×2×2 tiles of the 4×4×4 path, untested as blocks.
+        let mid = lo + UVec3::splat(4);
+        for tz in 0..2u32 {
+            for ty in 0..2u32 {
+                for tx in 0..2u32 {
+                    let t = UVec3::new(tx, ty, tz);
+                    let a = lo + t * 4;
+                    if a.cmpgt(hi).any() {
+                        continue;
+                    }
+                    let b = hi.min(a + UVec3::splat(3));
+                    let _ = mid;
+                    visit_cells(grid, sat, a, b, f);
+                }
+            }
+        }
+        return;
+    }
+    let block = Aabb::new(grid.corner(lo), grid.corner(hi + UVec3::ONE));
+    if !sat.overlaps(&block) {
+        return;
+    }
+    let axis = if n.x >= n.y && n.x >= n.z {
+        0
+    } else if n.y >= n.z {
+        1
+    } else {
+        2
+    };
+    let mid = lo[axis] + (n[axis] / 2) as u32;
+    let mut hi_a = hi;
+    hi_a[axis] = mid - 1;
+    let mut lo_b = lo;
+    lo_b[axis] = mid;
+    visit_cells(grid, sat, lo, hi_a, f);
+    visit_cells(grid, sat, lo_b, hi, f);
+}
+
+#[inline]
+fn octant(bc: UVec3, level: u32) -> usize {
+    (((bc.x >> level) & 1) | ((bc.y >> level) & 1) << 1 | ((bc.z >> level) & 1) << 2) as usize
+}
+
+/// Morton index of a 4×4×4 local coordinate (bits `z1 y1 x1 z0 y0 x0`).
+#[inline]
+fn morton2(l: UVec3) -> u32 {
+    (l.x & 1) | (l.y & 1) << 1 | (l.z & 1) << 2 | (l.x & 2) << 2 | (l.y & 2) << 3 | (l.z & 2) << 4
+}
+
+#[inline]
+fn demorton2(bit: u32) -> UVec3 {
+    UVec3::new(
+        (bit & 1) | (bit >> 2) & 2,
+        (bit >> 1) & 1 | (bit >> 3) & 2,
+        (bit >> 2) & 1 | (bit >> 4) & 2,
+    )
+}
+
+/// Spreads the low 21 bits of `v` to every third bit.
+#[inline]
+fn part1by2(v: u32) -> u64 {
+    let mut x = u64::from(v) & 0x1f_ffff;
+    x = (x | x << 32) & 0x001f_0000_0000_ffff;
+    x = (x | x << 16) & 0x001f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x << 2) & 0x1249_2492_4924_9249;
+    x
+}
+
+#[inline]
+fn compact1by2(x: u64) -> u32 {
+    let mut x = x & 0x1249_2492_4924_9249;
+    x = (x | x >> 2) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x >> 4) & 0x100f_00f0_0f00_f00f;
+    x = (x | x >> 8) & 0x001f_0000_ff00_00ff;
+    x = (x | x >> 16) & 0x001f_0000_0000_ffff;
+    x = (x | x >> 32) & 0x1f_ffff;
+    x as u32
+}
+
+/// Morton code (x in the lowest bit) of coordinates below `2^21`.
+#[inline]
+fn morton3(c: UVec3) -> u64 {
+    part1by2(c.x) | part1by2(c.y) << 1 | part1by2(c.z) << 2
+}
+
+#[inline]
+fn demorton3(m: u64) -> UVec3 {
+    UVec3::new(compact1by2(m), compact1by2(m >> 1), compact1by2(m >> 2))
+}
+
+/// Set bits of a mask, lowest first.
+struct BitIter(u64);
+
+impl Iterator for BitIter {
+    type Item = u32;
+    #[inline]
+    fn next(&mut self) -> Option<u32> {
+        if self.0 == 0 {
+            return None;
+        }
+        let b = self.0.trailing_zeros();
+        self.0 &= self.0 - 1;
+        Some(b)
+    }
+}
+
+// Brick records are 16 bytes, payload entries 8, nodes 32: the figures of the crate docs.
+const _: () = assert!(std::mem::size_of::<Brick>() == 16);
+const _: () = assert!(std::mem::size_of::<Payload>() == 8);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn morton_round_trips() {
+        for c in [
+            UVec3::ZERO,
+            UVec3::new(1, 2, 3),
+            UVec3::new(0x1f_ffff, 0, 7),
+            UVec3::splat(0x1f_ffff),
+        ] {
+            assert_eq!(demorton3(morton3(c)), c);
+        }
+        assert_eq!(morton3(UVec3::new(1, 0, 0)), 1);
+        assert_eq!(morton3(UVec3::new(0, 1, 0)), 2);
+        assert_eq!(morton3(UVec3::new(0, 0, 1)), 4);
+        for bit in 0..64 {
+            assert_eq!(morton2(demorton2(bit)), bit);
+            assert_eq!(u64::from(morton2(demorton2(bit))), morton3(demorton2(bit)));
+        }
+    }
+
+    #[test]
+    fn payload_blocks_grow_and_stay_sorted() {
+        let mut r = Region::new();
+        let b = r.new_brick();
+        // Insert all 64 bits in a scrambled order; each gets hits = bit + 1.
+        for i in 0..64u32 {
+            let bit = (i * 37) % 64;
+            r.add(b, bit, bit + 1, bit as f32);
+        }
+        let brick = r.bricks[b as usize];
+        assert_eq!(brick.mask, u64::MAX);
+        for (rank, bit) in BitIter(brick.mask).enumerate() {
+            let p = r.payload[brick.offset as usize + rank];
+            assert_eq!(p.hits, bit + 1);
+            assert_eq!(p.sdf, bit as f32);
+        }
+        // Freed blocks are reused by a second brick.
+        let before = r.payload.len();
+        let b2 = r.new_brick();
+        for bit in 0..8 {
+            r.add(b2, bit, 1, 0.0);
+        }
+        assert_eq!(r.payload.len(), before);
+    }
+
+    #[test]
+    fn candidate_range_is_closed() {
+        let t = Octree::new(Vec3::ZERO, 1.0, 0.25).unwrap();
+        let lay = t.layout;
+        // A box touching the plane x = 0.5 from below reaches cell 2 too.
+        let (lo, hi) = lay
+            .candidates_of_box(Vec3::new(0.3, 0.1, 0.1), Vec3::new(0.5, 0.1, 0.1))
+            .unwrap();
+        assert_eq!((lo.x, hi.x), (1, 2));
+        assert_eq!((lo.y, hi.y), (0, 0));
+        assert!(
+            lay.candidates_of_box(Vec3::splat(1.01), Vec3::splat(2.0))
+                .is_none()
+        );
+        let (lo, hi) = lay
+            .candidates_of_box(Vec3::splat(-5.0), Vec3::splat(5.0))
+            .unwrap();
+        assert_eq!((lo, hi), (UVec3::ZERO, UVec3::splat(3)));
+    }
+}

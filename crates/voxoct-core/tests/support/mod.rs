@@ -1,0 +1,3 @@
+//! Fixtures shared by the integration tests (and the bench).
+
+pub mod snapshot;

@@ -1,0 +1,362 @@
+//! Marching tetrahedra over sparse 8×8×8 bricks of pseudo-voxels.
+//!
+//! Cells are stored in bricks keyed by integer brick coordinates (a hash map per brick, not
+//! per cell). Every brick owns the pseudo-voxels (cubes) whose minimum corner lies in it and
+//! the grid edges `(p, p + dir)` whose lower end `p` lies in it, so each cube and each edge is
+//! visited exactly once, by integer key. For every brick that holds a cell, its seven
+//! "minus" neighbours exist too, so every cube that has a cell as a corner is visited.
+//!
+//! Pass 1 marks, per brick, the edges whose ends differ in inside-ness (bit rows: eight
+//! edges per XOR) and numbers them by prefix sums: a vertex's index is its brick's prefix
+//! plus a popcount, so welding needs no hash map. Pass 2 places the vertices, pass 3 emits
+//! the triangles of the active cubes from the case table.
+
+use std::collections::HashMap;
+
+use voxoct_core::GridSpec;
+use voxoct_core::glam::{DVec3, UVec3};
+
+use crate::mesh::Mesh;
+use crate::options::Placement;
+use crate::tables::{CASES, corner_offset};
+
+/// Grid coordinates are shifted by this so that cube minimum corners at −1 stay positive and
+/// every brick's minus neighbours have non-negative keys.
+const SHIFT: u32 = 8;
+/// Slots per brick for edge bits: 7 directions × 64 rows.
+const ROWS: usize = 7 * 64;
+/// Vertices never come closer to an edge end than this fraction of the edge.
+pub(crate) const T_MIN: f32 = 0.02;
+const NONE: u32 = u32::MAX;
+
+/// Bits set in each byte (a table: the baseline x86-64 target has no `popcnt`).
+static POP8: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut i = 0;
+    while i < 256 {
+        t[i] = (i as u8).count_ones() as u8;
+        i += 1;
+    }
+    t
+};
+
+/// Which cells count as inside, from their stored value (finite: a marked cell's mean signed
+/// distance in cells; `-inf`: an enclosed unmarked cell; `+inf`: outside / absent).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Inside {
+    /// Marked cells only (hollow shell).
+    Marked,
+    /// Marked and enclosed cells (solid, midpoint).
+    NotExterior,
+    /// Enclosed cells and marked cells whose centre is inside the surface (solid, sdf).
+    NonPositive,
+}
+
+impl Inside {
+    #[inline]
+    pub(crate) fn test(self, f: f32) -> bool {
+        match self {
+            Self::Marked => f.is_finite(),
+            Self::NotExterior => f != f32::INFINITY,
+            Self::NonPositive => f <= 0.0,
+        }
+    }
+}
+
+#[inline]
+fn brick_key(b: [u32; 3]) -> u64 {
+    u64::from(b[0]) | (u64::from(b[1]) << 21) | (u64::from(b[2]) << 42)
+}
+
+#[inline]
+const fn local(x: u32, y: u32, z: u32) -> usize {
+    ((z as usize * 8) + y as usize) * 8 + x as usize
+}
+
+#[derive(Debug, Default)]
+struct Bricks {
+    map: HashMap<u64, u32>,
+    keys: Vec<[u32; 3]>,
+    vals: Vec<f32>,
+    /// Inside bits, `[brick][z * 8 + y]`, bit `x`.
+    rows: Vec<u8>,
+    /// `[brick][o]`: the brick at `key + offset(o)`, or `NONE`.
+    nb: Vec<[u32; 8]>,
+}
+
+impl Bricks {
+    fn build(&mut self, entries: &[(UVec3, f32)], inside: Inside) {
+        let Self {
+            map,
+            keys,
+            vals,
+            rows,
+            nb,
+        } = self;
+        map.clear();
+        keys.clear();
+        vals.clear();
+        let mut get = |k: [u32; 3], keys: &mut Vec<[u32; 3]>, vals: &mut Vec<f32>| -> usize {
+            *map.entry(brick_key(k)).or_insert_with(|| {
+                keys.push(k);
+                vals.resize(vals.len() + 512, f32::INFINITY);
+                (keys.len() - 1) as u32
+            }) as usize
+        };
+        let mut last = ([u32::MAX; 3], 0usize);
+        for &(c, f) in entries {
+            let g = c + UVec3::splat(SHIFT);
+            let k = [g.x >> 3, g.y >> 3, g.z >> 3];
+            let b = if k == last.0 {
+                last.1
+            } else {
+                let b = get(k, keys, vals);
+                last = (k, b);
+                b
+            };
+            vals[b * 512 + local(g.x & 7, g.y & 7, g.z & 7)] = f;
+        }
+        let occupied = keys.len();
+        for b in 0..occupied {
+            let k = keys[b];
+            for o in 1..8u8 {
+                let d = corner_offset(o);
+                let m = [0, 1, 2].map(|i| k[i] - d[i] as u32);
+                get(m, keys, vals);
+            }
+        }
+        let n = keys.len();
+        rows.clear();
+        rows.resize(n * 64, 0);
+        for (b, r) in rows.chunks_exact_mut(64).enumerate() {
+            let v = &vals[b * 512..(b + 1) * 512];
+            for (row, bits) in r.iter_mut().enumerate() {
+                let mut m = 0u8;
+                for x in 0..8 {
+                    if inside.test(v[row * 8 + x]) {
+                        m |= 1 << x;
+                    }
+                }
+                *bits = m;
+            }
+        }
+        nb.clear();
+        nb.extend(keys.iter().map(|k| {
+            let mut out = [NONE; 8];
+            for (o, slot) in out.iter_mut().enumerate() {
+                let d = corner_offset(o as u8);
+                let m = [0, 1, 2].map(|i| k[i] + d[i] as u32);
+                if let Some(&i) = map.get(&brick_key(m)) {
+                    *slot = i;
+                }
+            }
+            out
+        }));
+    }
+
+    /// Inside bits of the 9×9×9 padded block `[z][y]`, bit `x` (0..9).
+    fn padded_rows(&self, b: usize) -> [[u16; 9]; 9] {
+        let mut p = [[0u16; 9]; 9];
+        let nb = &self.nb[b];
+        for (z, pz) in p.iter_mut().enumerate() {
+            for (y, pyz) in pz.iter_mut().enumerate() {
+                let o = (usize::from(y == 8) << 1) | (usize::from(z == 8) << 2);
+                let row = (z & 7) * 8 + (y & 7);
+                let mut bits = 0u16;
+                let b0 = nb[o];
+                if b0 != NONE {
+                    bits = u16::from(self.rows[b0 as usize * 64 + row]);
+                }
+                let b1 = nb[o | 1];
+                if b1 != NONE {
+                    bits |= u16::from(self.rows[b1 as usize * 64 + row] & 1) << 8;
+                }
+                *pyz = bits;
+            }
+        }
+        p
+    }
+
+    /// Value of the cell at padded local coordinates `p` (0..=8) of brick `b`.
+    #[inline]
+    fn value(&self, b: usize, p: [u32; 3]) -> f32 {
+        let o = (p[0] >> 3) | ((p[1] >> 3) << 1) | ((p[2] >> 3) << 2);
+        let bb = self.nb[b][o as usize];
+        if bb == NONE {
+            f32::INFINITY
+        } else {
+            self.vals[bb as usize * 512 + local(p[0] & 7, p[1] & 7, p[2] & 7)]
+        }
+    }
+}
+
+/// Where the surface crosses the edge from a cell of value `fp` to one of value `fq`
+/// (exactly one of them inside), as a fraction from the first; `len` is the edge length in
+/// cells.
+#[inline]
+pub(crate) fn crossing(placement: Placement, fp: f32, fq: f32, len: f32) -> f32 {
+    match placement {
+        Placement::Midpoint => 0.5,
+        Placement::SignedDistance => {
+            let t = match (fp.is_finite(), fq.is_finite()) {
+                (true, true) => fp / (fp - fq),
+                // Towards an outside cell the surface is at -d; towards an enclosed one at +d.
+                (true, false) => (if fq > 0.0 { -fp } else { fp }) / len,
+                (false, true) => 1.0 - (if fp > 0.0 { -fq } else { fq }) / len,
+                (false, false) => 0.5,
+            };
+            if t.is_nan() {
+                0.5
+            } else {
+                t.clamp(T_MIN, 1.0 - T_MIN)
+            }
+        }
+    }
+}
+
+/// Buffers reused from one meshing to the next.
+#[derive(Debug, Default)]
+pub(crate) struct Scratch {
+    /// The cells to march (grid coordinates and value, see [`Inside`]).
+    pub entries: Vec<(UVec3, f32)>,
+    bricks: Bricks,
+    /// Per brick and edge row: the index of the row's first vertex (low 32 bits) and the
+    /// row's crossing-edge mask (bits 32..40), in one word so a lookup is one load.
+    rows: Vec<u64>,
+    padded: Vec<[[u16; 9]; 9]>,
+}
+
+/// Marches `scratch.entries` into `out` (cleared first).
+pub(crate) fn march(
+    scratch: &mut Scratch,
+    grid: &GridSpec,
+    inside: Inside,
+    placement: Placement,
+    out: &mut Mesh,
+) {
+    let Scratch {
+        entries,
+        bricks,
+        rows: edge_rows,
+        padded,
+    } = scratch;
+    bricks.build(entries, inside);
+    let bricks = &*bricks;
+    let n = bricks.keys.len();
+    edge_rows.clear();
+    edge_rows.resize(n * ROWS, 0);
+    padded.clear();
+    let mut count = 0u32;
+    for b in 0..n {
+        let p = bricks.padded_rows(b);
+        for d in 1..8u8 {
+            let [dx, dy, dz] = corner_offset(d).map(|v| v as usize);
+            for z in 0..8 {
+                for y in 0..8 {
+                    let a = p[z][y];
+                    let c = p[z + dz][y + dy] >> dx;
+                    let m = ((a ^ c) & 0xFF) as u8;
+                    let i = b * ROWS + (d as usize - 1) * 64 + z * 8 + y;
+                    edge_rows[i] = u64::from(count) | (u64::from(m) << 32);
+                    count += u32::from(POP8[m as usize]);
+                }
+            }
+        }
+        padded.push(p);
+    }
+
+    // Pass 2: vertex positions, in index order.
+    let cell = f64::from(grid.cell);
+    // World position of grid point g (shifted coordinates): origin + (g - SHIFT + 0.5) · cell.
+    let offset = grid.origin.as_dvec3() + DVec3::splat((0.5 - f64::from(SHIFT)) * cell);
+    let vertices = &mut out.vertices;
+    vertices.clear();
+    vertices.reserve(count as usize);
+    for b in 0..n {
+        let key = bricks.keys[b];
+        let base = [key[0] * 8, key[1] * 8, key[2] * 8];
+        for d in 1..8u8 {
+            let dir = corner_offset(d);
+            let dirf = DVec3::new(f64::from(dir[0]), f64::from(dir[1]), f64::from(dir[2]));
+            let len = ((dir[0] + dir[1] + dir[2]) as f32).sqrt();
+            for z in 0..8u32 {
+                for y in 0..8u32 {
+                    let mut m = (edge_rows[b * ROWS + (d as usize - 1) * 64 + (z * 8 + y) as usize]
+                        >> 32) as u8;
+                    while m != 0 {
+                        let x = m.trailing_zeros();
+                        m &= m - 1;
+                        let t = if placement == Placement::Midpoint {
+                            0.5
+                        } else {
+                            let p = [x, y, z];
+                            let q = [x + dir[0] as u32, y + dir[1] as u32, z + dir[2] as u32];
+                            let fp = bricks.value(b, p);
+                            let fq = bricks.value(b, q);
+                            if inside.test(fp) {
+                                crossing(placement, fp, fq, len)
+                            } else {
+                                1.0 - crossing(placement, fq, fp, len)
+                            }
+                        };
+                        let t = f64::from(t);
+                        let g = DVec3::new(
+                            f64::from(base[0] + x) + t * dirf.x,
+                            f64::from(base[1] + y) + t * dirf.y,
+                            f64::from(base[2] + z) + t * dirf.z,
+                        );
+                        let pos = offset + g * cell;
+                        vertices.push(pos.as_vec3());
+                    }
+                }
+            }
+        }
+    }
+    debug_assert_eq!(vertices.len(), count as usize);
+
+    // Pass 3: triangles.
+    let table = &*CASES;
+    let triangles = &mut out.triangles;
+    triangles.clear();
+    triangles.reserve(count as usize * 2);
+    for (b, p) in padded.iter().enumerate() {
+        // Row bases of the eight bricks this brick's cubes reach into.
+        let nb_base = bricks.nb[b].map(|bb| (bb as usize).wrapping_mul(ROWS));
+        for z in 0..8usize {
+            for y in 0..8usize {
+                let r = [[p[z][y], p[z][y + 1]], [p[z + 1][y], p[z + 1][y + 1]]];
+                let any = r[0][0] | r[0][1] | r[1][0] | r[1][1];
+                let all = r[0][0] & r[0][1] & r[1][0] & r[1][1];
+                let mut active = ((any | (any >> 1)) & !(all & (all >> 1))) & 0xFF;
+                while active != 0 {
+                    let x = active.trailing_zeros();
+                    active &= active - 1;
+                    // Corner i = ox + 2 oy + 4 oz: two x-neighbour bits from each row.
+                    let case = usize::from((r[0][0] >> x) & 3)
+                        | usize::from((r[0][1] >> x) & 3) << 2
+                        | usize::from((r[1][0] >> x) & 3) << 4
+                        | usize::from((r[1][1] >> x) & 3) << 6;
+                    let edges = &table.edges
+                        [table.edge_start[case] as usize..table.edge_start[case + 1] as usize];
+                    let mut ids = [0u32; 19];
+                    for (id, e) in ids.iter_mut().zip(edges) {
+                        let (px, py, pz) = (x + e.ox, y as u32 + e.oy, z as u32 + e.oz);
+                        let o = (px >> 3) | ((py >> 3) << 1) | ((pz >> 3) << 2);
+                        let i = nb_base[o as usize] + e.row + ((pz & 7) * 8 + (py & 7)) as usize;
+                        let w = edge_rows[i];
+                        let m = (w >> 32) as u32;
+                        debug_assert!(m >> (px & 7) & 1 == 1, "edge without a vertex");
+                        *id = w as u32 + u32::from(POP8[(m & ((1u32 << (px & 7)) - 1)) as usize]);
+                    }
+                    let local =
+                        &table.local[table.start[case] as usize..table.start[case + 1] as usize];
+                    triangles.extend(
+                        local
+                            .iter()
+                            .map(|l| [ids[l[0] as usize], ids[l[1] as usize], ids[l[2] as usize]]),
+                    );
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,406 @@
+//! The indexed mesh, its closed-manifold check and its statistics.
+
+use voxoct_core::Aabb;
+use voxoct_core::glam::Vec3;
+
+/// An indexed triangle mesh: triangles are counter-clockwise seen from outside.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions, metres.
+    pub vertices: Vec<Vec3>,
+    /// Triangles as indices into `vertices`, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// What makes a mesh fail [`Mesh::check_closed_manifold`], and where.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum TopologyError {
+    /// The mesh has no triangles (so it encloses no volume).
+    #[error("the mesh is empty")]
+    Empty,
+    /// A triangle refers to a vertex that does not exist.
+    #[error("triangle {triangle} refers to vertex {index}, past the last vertex")]
+    IndexOutOfRange {
+        /// Triangle index.
+        triangle: usize,
+        /// The bad index.
+        index: u32,
+    },
+    /// A triangle uses one vertex twice.
+    #[error("triangle {triangle} uses a vertex twice")]
+    RepeatedIndex {
+        /// Triangle index.
+        triangle: usize,
+    },
+    /// A vertex position is NaN or infinite.
+    #[error("vertex {vertex} is not finite")]
+    NonFiniteVertex {
+        /// Vertex index.
+        vertex: u32,
+    },
+    /// Two vertices have the same position (welding an STL would merge them).
+    #[error("vertices {a} and {b} have the same position")]
+    DuplicatePosition {
+        /// First vertex.
+        a: u32,
+        /// Second vertex.
+        b: u32,
+    },
+    /// A vertex that no triangle uses.
+    #[error("vertex {vertex} is used by no triangle")]
+    UnusedVertex {
+        /// Vertex index.
+        vertex: u32,
+    },
+    /// A triangle with (numerically) zero area.
+    #[error("triangle {triangle} is degenerate (area {area:e})")]
+    Degenerate {
+        /// Triangle index.
+        triangle: usize,
+        /// Its area.
+        area: f32,
+    },
+    /// The directed edge `a → b` appears in two triangles: more than two triangles on one
+    /// edge, or two neighbours with inconsistent orientation.
+    #[error("directed edge {a} -> {b} appears in more than one triangle (triangle {triangle})")]
+    RepeatedEdge {
+        /// Edge start.
+        a: u32,
+        /// Edge end.
+        b: u32,
+        /// One of the triangles.
+        triangle: usize,
+    },
+    /// The directed edge `a → b` has no triangle with `b → a`: a hole or a flipped neighbour.
+    #[error("edge {a} -> {b} of triangle {triangle} has no opposite edge {b} -> {a}")]
+    OpenEdge {
+        /// Edge start.
+        a: u32,
+        /// Edge end.
+        b: u32,
+        /// The triangle that has it.
+        triangle: usize,
+    },
+    /// The triangles around a vertex form more than one fan (two sheets touch at it).
+    #[error("vertex {vertex}: its {triangles} triangles form {fans} fans instead of one disc")]
+    NonManifoldVertex {
+        /// Vertex index.
+        vertex: u32,
+        /// Triangles around it.
+        triangles: usize,
+        /// Number of separate fans.
+        fans: usize,
+    },
+    /// The enclosed volume is not positive (normals point inward).
+    #[error("enclosed volume {volume:e} is not positive")]
+    NonPositiveVolume {
+        /// Signed volume, cubic metres.
+        volume: f64,
+    },
+}
+
+/// Summary figures of a mesh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshStats {
+    /// Number of triangles.
+    pub triangles: usize,
+    /// Number of vertices.
+    pub vertices: usize,
+    /// Signed enclosed volume, cubic metres (positive for an outward-oriented closed mesh).
+    pub volume: f64,
+    /// Total surface area, square metres.
+    pub area: f64,
+    /// Bounding box of the vertices (`None` when there are none).
+    pub bounds: Option<Aabb>,
+    /// Number of edge-connected components of triangles (a hollow shell counts two).
+    pub components: usize,
+}
+
+/// Relative area below which a triangle counts as degenerate: `|cross| <= EPS · longest²`.
+const DEGENERATE_REL: f32 = 1.0e-6;
+
+/// Whether triangle `t` is degenerate in `f32`; returns its area.
+#[inline]
+pub(crate) fn triangle_area(v: &[Vec3], t: [u32; 3]) -> (f32, bool) {
+    let [a, b, c] = t.map(|i| v[i as usize]);
+    let n = (b - a).cross(c - a).length();
+    let longest = (b - a)
+        .length_squared()
+        .max((c - a).length_squared())
+        .max((c - b).length_squared());
+    (0.5 * n, n.is_nan() || n <= DEGENERATE_REL * longest)
+}
+
+/// A small union-find.
+pub(crate) struct Dsu(Vec<u32>);
+
+impl Dsu {
+    pub(crate) fn new(n: usize) -> Self {
+        Self((0..n as u32).collect())
+    }
+    pub(crate) fn find(&mut self, mut x: u32) -> u32 {
+        while self.0[x as usize] != x {
+            let p = self.0[self.0[x as usize] as usize];
+            self.0[x as usize] = p;
+            x = p;
+        }
+        x
+    }
+    pub(crate) fn union(&mut self, a: u32, b: u32) {
+        let (a, b) = (self.find(a), self.find(b));
+        if a != b {
+            self.0[a.max(b) as usize] = a.min(b);
+        }
+    }
+}
+
+impl Mesh {
+    /// Signed enclosed volume, cubic metres (divergence theorem, in `f64` about the first
+    /// vertex).
+    #[must_use]
+    pub fn volume(&self) -> f64 {
+        let Some(&o) = self.vertices.first() else {
+            return 0.0;
+        };
+        let o = o.as_dvec3();
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize].as_dvec3() - o);
+                a.dot(b.cross(c))
+            })
+            .sum::<f64>()
+            / 6.0
+    }
+
+    /// Total surface area, square metres.
+    #[must_use]
+    pub fn area(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize].as_dvec3());
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
+    }
+
+    /// Component label (smallest vertex index of the component) of every vertex.
+    pub(crate) fn vertex_components(&self) -> Dsu {
+        let mut dsu = Dsu::new(self.vertices.len());
+        for t in &self.triangles {
+            dsu.union(t[0], t[1]);
+            dsu.union(t[0], t[2]);
+        }
+        dsu
+    }
+
+    /// Triangle and vertex counts, volume, area, bounds, components.
+    #[must_use]
+    pub fn stats(&self) -> MeshStats {
+        let bounds = self.vertices.first().map(|&p0| {
+            let (lo, hi) = self
+                .vertices
+                .iter()
+                .fold((p0, p0), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+            Aabb::new(lo, hi)
+        });
+        let mut dsu = self.vertex_components();
+        let mut roots: Vec<u32> = self.triangles.iter().map(|t| dsu.find(t[0])).collect();
+        roots.sort_unstable();
+        roots.dedup();
+        let components = roots.len();
+        MeshStats {
+            triangles: self.triangles.len(),
+            vertices: self.vertices.len(),
+            volume: self.volume(),
+            area: self.area(),
+            bounds,
+            components,
+        }
+    }
+
+    /// Checks that the mesh is a closed, oriented 2-manifold enclosing positive volume:
+    /// valid indices, finite and pairwise distinct vertex positions, every vertex used, no
+    /// degenerate triangle (in `f32`), every directed edge exactly once with its opposite
+    /// exactly once (so every edge has exactly two triangles, oriented consistently), the
+    /// triangles around every vertex one single disc, and a positive signed volume.
+    ///
+    /// # Errors
+    /// The first [`TopologyError`] found, naming the triangle, edge or vertex.
+    pub fn check_closed_manifold(&self) -> Result<(), TopologyError> {
+        let nv = self.vertices.len();
+        if self.triangles.is_empty() {
+            return Err(TopologyError::Empty);
+        }
+        for (i, p) in self.vertices.iter().enumerate() {
+            if !p.is_finite() {
+                return Err(TopologyError::NonFiniteVertex { vertex: i as u32 });
+            }
+        }
+        let mut used = vec![0u32; nv + 1];
+        for (i, t) in self.triangles.iter().enumerate() {
+            for &k in t {
+                if k as usize >= nv {
+                    return Err(TopologyError::IndexOutOfRange {
+                        triangle: i,
+                        index: k,
+                    });
+                }
+                used[k as usize] += 1;
+            }
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                return Err(TopologyError::RepeatedIndex { triangle: i });
+            }
+            let (area, degenerate) = triangle_area(&self.vertices, *t);
+            if degenerate {
+                return Err(TopologyError::Degenerate { triangle: i, area });
+            }
+        }
+        if let Some(v) = used[..nv].iter().position(|&c| c == 0) {
+            return Err(TopologyError::UnusedVertex { vertex: v as u32 });
+        }
+        // Distinct positions (+0.0 and -0.0 are the same point).
+        let mut order: Vec<u32> = (0..nv as u32).collect();
+        let key = |p: Vec3| p.to_array().map(|x| if x == 0.0 { 0 } else { x.to_bits() });
+        order.sort_unstable_by_key(|&i| key(self.vertices[i as usize]));
+        for w in order.windows(2) {
+            if key(self.vertices[w[0] as usize]) == key(self.vertices[w[1] as usize]) {
+                return Err(TopologyError::DuplicatePosition { a: w[0], b: w[1] });
+            }
+        }
+        // Directed edges, each with its triangle.
+        let mut edges: Vec<(u64, u32)> = Vec::with_capacity(3 * self.triangles.len());
+        for (i, t) in self.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                edges.push(((u64::from(a) << 32) | u64::from(b), i as u32));
+            }
+        }
+        edges.sort_unstable();
+        for w in edges.windows(2) {
+            if w[0].0 == w[1].0 {
+                return Err(TopologyError::RepeatedEdge {
+                    a: (w[0].0 >> 32) as u32,
+                    b: w[0].0 as u32,
+                    triangle: w[1].1 as usize,
+                });
+            }
+        }
+        for &(e, tri) in &edges {
+            let rev = e.rotate_right(32);
+            if edges.binary_search_by_key(&rev, |x| x.0).is_err() {
+                return Err(TopologyError::OpenEdge {
+                    a: (e >> 32) as u32,
+                    b: e as u32,
+                    triangle: tri as usize,
+                });
+            }
+        }
+        // Fans: around v every triangle (v, a, b) gives a link edge a -> b; with the edge
+        // checks above, each link vertex has one successor and one predecessor, so the link
+        // is a set of cycles, and it must be exactly one.
+        let mut start = vec![0u32; nv + 1];
+        for t in &self.triangles {
+            for &k in t {
+                start[k as usize + 1] += 1;
+            }
+        }
+        for i in 0..nv {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut link = vec![(0u32, 0u32); 3 * self.triangles.len()];
+        for t in &self.triangles {
+            for k in 0..3 {
+                let v = t[k] as usize;
+                link[fill[v] as usize] = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                fill[v] += 1;
+            }
+        }
+        for v in 0..nv {
+            let fan = &link[start[v] as usize..start[v + 1] as usize];
+            let first = fan[0].0;
+            let mut cur = first;
+            let mut steps = 0;
+            while let Some(&(_, next)) = fan.iter().find(|e| e.0 == cur) {
+                steps += 1;
+                cur = next;
+                if cur == first || steps > fan.len() {
+                    break;
+                }
+            }
+            if steps != fan.len() {
+                return Err(TopologyError::NonManifoldVertex {
+                    vertex: v as u32,
+                    triangles: fan.len(),
+                    fans: count_cycles(fan),
+                });
+            }
+        }
+        let volume = self.volume();
+        if volume.is_nan() || volume <= 0.0 {
+            return Err(TopologyError::NonPositiveVolume { volume });
+        }
+        Ok(())
+    }
+
+    /// Removes vertices that no triangle uses, renumbering the rest in order.
+    pub fn remove_unused_vertices(&mut self) {
+        let mut map = vec![u32::MAX; self.vertices.len()];
+        for t in &self.triangles {
+            for &k in t {
+                map[k as usize] = 0;
+            }
+        }
+        let mut n = 0u32;
+        let mut kept = Vec::with_capacity(self.vertices.len());
+        for (i, m) in map.iter_mut().enumerate() {
+            if *m == 0 {
+                *m = n;
+                n += 1;
+                kept.push(self.vertices[i]);
+            }
+        }
+        for t in &mut self.triangles {
+            *t = t.map(|k| map[k as usize]);
+        }
+        self.vertices = kept;
+    }
+
+    /// The triangles as a soup of [`voxoct_core::Triangle`] (e.g. for an STL writer or an
+    /// octree).
+    #[must_use]
+    pub fn triangle_soup(&self) -> Vec<voxoct_core::Triangle> {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize]);
+                voxoct_core::Triangle::new(a, b, c)
+            })
+            .collect()
+    }
+}
+
+/// Number of cycles of a link given as successor pairs (each `a` at most once).
+fn count_cycles(fan: &[(u32, u32)]) -> usize {
+    let mut seen = vec![false; fan.len()];
+    let mut cycles = 0;
+    for i in 0..fan.len() {
+        if seen[i] {
+            continue;
+        }
+        cycles += 1;
+        let mut j = i;
+        while !seen[j] {
+            seen[j] = true;
+            let next = fan[j].1;
+            match fan.iter().position(|e| e.0 == next) {
+                Some(k) => j = k,
+                None => break,
+            }
+        }
+    }
+    cycles
+}

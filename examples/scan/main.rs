@@ -1,0 +1,537 @@
+//! `scan`: a full 3D scan, from depth frames to a watertight, printable STL.
+//!
+//! ```sh
+//! cargo run --release --example scan                       # simulated scan of a built-in model → scan.stl
+//! cargo run --release --example scan -- --input DIR        # a recorded scan (SCAN_FORMAT.md)
+//! cargo run --release --example scan -- --help             # everything else
+//! ```
+//!
+//! The stages: capture (or load) → filter → back-project, transform, clip → triangulate →
+//! octree insertion → marching tetrahedra → STL. Each stage is a call into one voxoct crate;
+//! this file only parses the command line, times the stages and reports.
+
+mod preview;
+mod source;
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use clap::{Parser, ValueEnum};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
+
+use voxoct::depth::FilterChain;
+use voxoct::mesh::{MeshOptions, Placement, Taubin};
+use voxoct::pipeline::{Params, Reconstruction, reconstruct};
+
+/// Output units of the STL file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Units {
+    /// Millimetres: what every slicer assumes.
+    Mm,
+    /// Metres: the library's own unit.
+    M,
+}
+
+/// Scan an object on a turntable into a watertight, printable STL.
+///
+/// With no arguments: a simulated Kinect v1 scan of a built-in model, written to scan.stl.
+#[derive(Debug, Parser)]
+#[command(name = "scan", version, about, long_about = None)]
+struct Args {
+    // ---- where the depth frames come from -------------------------------------------------
+    /// Process a recorded-scan directory (scan.toml + 16-bit PNG frames).
+    #[arg(long, value_name = "DIR", help_heading = "Source")]
+    input: Option<PathBuf>,
+    /// Process a libfreenect (fakenect) recording; needs --degrees-per-snapshot.
+    #[arg(
+        long,
+        value_name = "DIR",
+        help_heading = "Source",
+        requires = "degrees_per_snapshot"
+    )]
+    fakenect: Option<PathBuf>,
+    /// Turntable angle between consecutive snapshots of a fakenect recording.
+    #[arg(long, value_name = "D", help_heading = "Source")]
+    degrees_per_snapshot: Option<f32>,
+    /// Simulated scan of your own mesh (STL, binary or ASCII, or OBJ).
+    #[arg(long, value_name = "FILE", help_heading = "Source")]
+    model: Option<PathBuf>,
+    /// Simulated scan of a built-in model (see --list-models).
+    #[arg(
+        long,
+        value_name = "NAME",
+        default_value = "figurine",
+        help_heading = "Source"
+    )]
+    builtin: String,
+    /// Print the built-in model names and exit.
+    #[arg(long, help_heading = "Source")]
+    list_models: bool,
+    /// Live scan with a Kinect v1 (build with `--features freenect`).
+    #[arg(long, help_heading = "Source")]
+    kinect: bool,
+    /// The turntable server (examples/turntable_server.rs on the Pi) for a live scan.
+    #[arg(long, value_name = "HOST:PORT", help_heading = "Source")]
+    turntable: Option<String>,
+    /// Shared secret of the turntable server (or VOXOCT_TURNTABLE_TOKEN).
+    #[arg(
+        long,
+        value_name = "T",
+        env = "VOXOCT_TURNTABLE_TOKEN",
+        hide_env_values = true,
+        help_heading = "Source"
+    )]
+    token: Option<String>,
+    /// Seed of the simulated sensor's noise.
+    #[arg(long, default_value_t = 1, help_heading = "Source")]
+    seed: u64,
+    /// Simulate exact, noise-free frames.
+    #[arg(long, help_heading = "Source")]
+    exact: bool,
+    /// Also write what was captured as a recorded-scan directory.
+    #[arg(long, value_name = "DIR", help_heading = "Source")]
+    record_to: Option<PathBuf>,
+    /// Scanner settings ([sensor], [rig], [clip] tables) overriding the source's own.
+    #[arg(long, value_name = "FILE", help_heading = "Source")]
+    config: Option<PathBuf>,
+    /// Snapshots of a capture (turntable steps of 360°/N).
+    #[arg(long, value_name = "N", default_value_t = 8, help_heading = "Source")]
+    snapshots: u32,
+    /// Frames per snapshot of a capture (fakenect: frames per snapshot).
+    #[arg(long, value_name = "F", default_value_t = 4, help_heading = "Source")]
+    frames: u32,
+
+    // ---- reconstruction ---------------------------------------------------------------------
+    /// Depth filter chain, e.g. `median+outlier`, `average`, `average-discard`, `basic`.
+    #[arg(long, value_name = "NAME", help_heading = "Reconstruction")]
+    filter: Option<String>,
+    /// Leaf size, metres (the real leaf edge is root / 2^depth, at most this).
+    #[arg(
+        long,
+        value_name = "M",
+        default_value_t = 0.001,
+        help_heading = "Reconstruction"
+    )]
+    leaf: f32,
+    /// Edge of the octree's cubic root, metres (centred on the clip box).
+    #[arg(
+        long,
+        value_name = "M",
+        default_value_t = 1.0,
+        help_heading = "Reconstruction"
+    )]
+    root: f32,
+    /// Largest squared triangle edge kept by the triangulation, m².
+    #[arg(
+        long,
+        value_name = "M2",
+        default_value_t = 0.0001,
+        help_heading = "Reconstruction"
+    )]
+    threshold: f32,
+    /// Mesh N levels coarser than the leaves (level of detail).
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 0,
+        help_heading = "Reconstruction"
+    )]
+    lod: u32,
+
+    // ---- meshing ---------------------------------------------------------------------------
+    /// The thesis's mesh: binary leaf values, hollow double-walled shell, no smoothing.
+    #[arg(long, help_heading = "Meshing")]
+    thesis: bool,
+    /// Keep the hollow double-walled shell instead of one solid with a flat base.
+    #[arg(long, help_heading = "Meshing")]
+    hollow: bool,
+    /// Place vertices at the leaf centres' midpoints (binary field) instead of the surface.
+    #[arg(long, help_heading = "Meshing")]
+    binary: bool,
+    /// Taubin smoothing iterations (0 = none).
+    #[arg(long, value_name = "N", help_heading = "Meshing")]
+    smooth: Option<u32>,
+    /// Leaves hit by fewer triangles count as empty (rejects single errant readings).
+    #[arg(long, value_name = "N", help_heading = "Meshing")]
+    min_hits: Option<u32>,
+    /// Remove disconnected pieces of fewer leaves than this.
+    #[arg(long, value_name = "N", help_heading = "Meshing")]
+    min_component: Option<usize>,
+
+    // ---- output ----------------------------------------------------------------------------
+    /// The STL file to write.
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "scan.stl",
+        help_heading = "Output"
+    )]
+    out: PathBuf,
+    /// Write ASCII STL instead of binary.
+    #[arg(long, help_heading = "Output")]
+    ascii: bool,
+    /// Units of the STL numbers.
+    #[arg(long, value_enum, default_value = "mm", help_heading = "Output")]
+    units: Units,
+    /// Write figures of the run as one JSON object.
+    #[arg(long, value_name = "FILE.json", help_heading = "Output")]
+    stats: Option<PathBuf>,
+    /// Write a shaded picture of the result from three sides.
+    #[arg(long, value_name = "FILE.png", help_heading = "Output")]
+    preview: Option<PathBuf>,
+    /// No progress bars and no summary.
+    #[arg(short, long, help_heading = "Output")]
+    quiet: bool,
+}
+
+/// Seconds spent in each stage.
+#[derive(Debug, Default, Serialize)]
+struct Seconds {
+    load: f64,
+    filter: f64,
+    triangulate: f64,
+    insert: f64,
+    mesh: f64,
+    write: f64,
+    total: f64,
+}
+
+/// The `--stats` JSON object.
+#[derive(Debug, Serialize)]
+struct Stats {
+    source: String,
+    snapshots: usize,
+    frames: usize,
+    filter: String,
+    triangles_in: usize,
+    leaves: usize,
+    leaf_size_m: f32,
+    octree_depth: u32,
+    octree_bytes: usize,
+    mesh_triangles: usize,
+    mesh_vertices: usize,
+    mesh_components: usize,
+    mesh_volume_m3: f64,
+    mesh_area_m2: f64,
+    closed_manifold: bool,
+    peak_rss_bytes: u64,
+    threads: usize,
+    seconds: Seconds,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Stage progress: a spinner per stage on a terminal, nothing otherwise or with `-q`.
+struct Progress {
+    enabled: bool,
+}
+
+impl Progress {
+    fn stage(&self, name: &str, len: Option<u64>) -> ProgressBar {
+        if !self.enabled {
+            return ProgressBar::hidden();
+        }
+        let pb = match len {
+            Some(n) => ProgressBar::with_draw_target(Some(n), ProgressDrawTarget::stderr())
+                .with_style(
+                    ProgressStyle::with_template("{prefix:>12} [{bar:30}] {pos}/{len} {msg}")
+                        .unwrap_or_else(|_| ProgressStyle::default_bar())
+                        .progress_chars("=> "),
+                ),
+            None => ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr()).with_style(
+                ProgressStyle::with_template("{prefix:>12} {spinner} {msg}")
+                    .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+            ),
+        };
+        pb.set_prefix(name.to_string());
+        pb.enable_steady_tick(Duration::from_millis(100));
+        pb
+    }
+}
+
+fn run(args: &Args) -> Result<(), String> {
+    if args.list_models {
+        for name in voxoct::kinect::Model::BUILTIN_NAMES {
+            println!("{name}");
+        }
+        return Ok(());
+    }
+    check_args(args)?;
+    let progress = Progress {
+        enabled: !args.quiet && std::io::stderr().is_terminal(),
+    };
+    let t_start = Instant::now();
+    let mut seconds = Seconds::default();
+
+    // 1. Capture or load.
+    let t = Instant::now();
+    let acquired = source::acquire(args, &progress)?;
+    seconds.load = t.elapsed().as_secs_f64();
+    if let Some(dir) = &args.record_to {
+        source::record(&acquired, dir)?;
+    }
+    let source::Acquired {
+        settings,
+        snapshots,
+    } = acquired;
+    let n_snapshots = snapshots.len();
+    let n_frames: usize = snapshots.iter().map(|s| s.frames.len()).sum();
+
+    // 2–5. Filter, back-project, triangulate, insert, mesh.
+    let params = Params {
+        filter: match &args.filter {
+            Some(name) => name.parse().map_err(|e| format!("--filter: {e}"))?,
+            None => FilterChain::default(),
+        },
+        leaf_m: args.leaf,
+        root_m: args.root,
+        max_edge_sq: args.threshold,
+        lod: args.lod,
+        mesh: mesh_options(args),
+    };
+    let mut bar: Option<ProgressBar> = None;
+    let result = reconstruct(&settings.config, snapshots, &params, |stage| {
+        if let Some(b) = bar.take() {
+            b.finish_and_clear();
+        }
+        bar = Some(progress.stage(&format!("{stage:?}").to_lowercase(), None));
+    });
+    if let Some(b) = bar.take() {
+        b.finish_and_clear();
+    }
+    let Reconstruction {
+        mesh,
+        tree,
+        triangles_in,
+        timings,
+    } = result.map_err(|e| e.to_string())?;
+    seconds.filter = timings.filter.as_secs_f64();
+    seconds.triangulate = timings.triangulate.as_secs_f64();
+    seconds.insert = timings.insert.as_secs_f64();
+    seconds.mesh = timings.mesh.as_secs_f64();
+    let closed = mesh.check_closed_manifold();
+    if mesh.triangles.is_empty() {
+        return Err("the scan produced an empty mesh: is the object inside the clip box? (check [clip] and [rig])".into());
+    }
+
+    // 6. Write the STL (atomically: no half-written file at --out).
+    let t = Instant::now();
+    let scale = match args.units {
+        Units::Mm => 1000.0,
+        Units::M => 1.0,
+    };
+    let format = if args.ascii {
+        voxoct::stl::StlFormat::Ascii
+    } else {
+        voxoct::stl::StlFormat::Binary
+    };
+    voxoct::stl::write_file(&args.out, &mesh.vertices, &mesh.triangles, format, scale)
+        .map_err(|e| format!("writing {}: {e}", args.out.display()))?;
+    seconds.write = t.elapsed().as_secs_f64();
+    if let Some(path) = &args.preview {
+        preview::write_preview(path, &mesh.vertices, &mesh.triangles)?;
+    }
+    seconds.total = t_start.elapsed().as_secs_f64();
+
+    let mstats = mesh.stats();
+    let stats = Stats {
+        source: settings.source.clone(),
+        snapshots: n_snapshots,
+        frames: n_frames,
+        filter: params.filter.to_string(),
+        triangles_in,
+        leaves: tree.leaf_count(),
+        leaf_size_m: tree.leaf_edge(),
+        octree_depth: tree.depth(),
+        octree_bytes: tree.memory_bytes(),
+        mesh_triangles: mesh.triangles.len(),
+        mesh_vertices: mesh.vertices.len(),
+        mesh_components: mstats.components,
+        mesh_volume_m3: mstats.volume,
+        mesh_area_m2: mstats.area,
+        closed_manifold: closed.is_ok(),
+        peak_rss_bytes: peak_rss_bytes(),
+        threads: rayon::current_num_threads(),
+        seconds,
+    };
+    if let Some(path) = &args.stats {
+        let json = serde_json::to_string_pretty(&stats).map_err(|e| format!("stats: {e}"))?;
+        write_atomic(path, json.as_bytes())?;
+    }
+    if !args.quiet {
+        summary(args, &stats);
+    }
+    closed.map_err(|e| {
+        format!("internal error: the mesh is not closed ({e}); please report this with the scan")
+    })?;
+    Ok(())
+}
+
+/// The meshing options the flags ask for: the best quality unless told otherwise.
+fn mesh_options(args: &Args) -> MeshOptions {
+    let mut o = if args.thesis {
+        MeshOptions::thesis()
+    } else {
+        MeshOptions::smooth()
+    };
+    if args.hollow {
+        o.solid = false;
+    }
+    if args.binary {
+        o.placement = Placement::Midpoint;
+    }
+    if let Some(n) = args.smooth {
+        o.smoothing = (n > 0).then(|| Taubin {
+            iterations: n,
+            ..Taubin::default()
+        });
+    }
+    if let Some(h) = args.min_hits {
+        o.min_hits = h;
+    }
+    if let Some(c) = args.min_component {
+        o.min_component_cells = c;
+    }
+    o
+}
+
+/// Rejects contradictory or out-of-range flags before any work is done.
+fn check_args(args: &Args) -> Result<(), String> {
+    let sources = [
+        args.input.is_some(),
+        args.fakenect.is_some(),
+        args.model.is_some(),
+        args.kinect,
+    ]
+    .iter()
+    .filter(|&&b| b)
+    .count();
+    if sources > 1 {
+        return Err("choose one source: --input, --fakenect, --model or --kinect".into());
+    }
+    let positive = |name: &str, v: f32| -> Result<(), String> {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(format!(
+                "{name} must be a positive number of metres, got {v}"
+            ))
+        }
+    };
+    positive("--leaf", args.leaf)?;
+    positive("--root", args.root)?;
+    if args.leaf > args.root {
+        return Err(format!(
+            "--leaf {} is larger than the octree root --root {}",
+            args.leaf, args.root
+        ));
+    }
+    if !(args.threshold.is_finite() && args.threshold > 0.0) {
+        return Err(format!(
+            "--threshold must be a positive squared edge length in m², got {}",
+            args.threshold
+        ));
+    }
+    if args.snapshots == 0 || args.snapshots > 3600 {
+        return Err(format!(
+            "--snapshots must be between 1 and 3600, got {}",
+            args.snapshots
+        ));
+    }
+    if args.frames == 0 || args.frames > 1000 {
+        return Err(format!(
+            "--frames must be between 1 and 1000, got {}",
+            args.frames
+        ));
+    }
+    if let Some(d) = args.degrees_per_snapshot {
+        if !d.is_finite() || d.abs() > 360.0 {
+            return Err(format!(
+                "--degrees-per-snapshot must be a finite angle within ±360, got {d}"
+            ));
+        }
+    }
+    if args.turntable.is_some() && !args.kinect {
+        return Err("--turntable is for live scans: add --kinect".into());
+    }
+    if args.out.as_os_str().is_empty() {
+        return Err("--out must name a file".into());
+    }
+    if args.out.is_dir() {
+        return Err(format!(
+            "--out {} is a directory; name a file such as scan.stl",
+            args.out.display()
+        ));
+    }
+    Ok(())
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory.
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let tmp = path.with_extension("partial");
+    std::fs::write(&tmp, bytes)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            format!("cannot write {}: {e}", path.display())
+        })
+}
+
+/// Peak resident set size of this process (Linux `VmHWM`), 0 where unknown.
+fn peak_rss_bytes() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("VmHWM:"))
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        })
+        .map_or(0, |kb| kb * 1024)
+}
+
+/// The short report at the end of a run.
+fn summary(args: &Args, s: &Stats) {
+    let t = &s.seconds;
+    eprintln!(
+        "{} snapshots × {} frames ({}), {} triangles → {} leaves of {:.3} mm → {} triangles",
+        s.snapshots,
+        s.frames / s.snapshots.max(1),
+        s.filter,
+        s.triangles_in,
+        s.leaves,
+        s.leaf_size_m * 1000.0,
+        s.mesh_triangles
+    );
+    eprintln!(
+        "time: load {:.2}s, filter {:.2}s, triangulate {:.2}s, insert {:.2}s, mesh {:.2}s, write {:.2}s; total {:.2}s; peak memory {:.0} MB",
+        t.load,
+        t.filter,
+        t.triangulate,
+        t.insert,
+        t.mesh,
+        t.write,
+        t.total,
+        s.peak_rss_bytes as f64 / 1e6
+    );
+    eprintln!(
+        "watertight: {}; wrote {} ({})",
+        if s.closed_manifold { "yes" } else { "NO" },
+        args.out.display(),
+        match args.units {
+            Units::Mm => "mm",
+            Units::M => "m",
+        }
+    );
+}

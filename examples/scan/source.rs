@@ -1,0 +1,310 @@
+//! Where the frames come from: a simulated or live capture, a recorded scan, a fakenect recording.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use voxoct::depth::{RecordedScan, ScanManifest, ScannerConfig, SnapshotEntry};
+use voxoct::kinect::{DepthSource, FakenectSource, Model, SimConfig, SimulatedKinect};
+use voxoct::pipeline::SnapshotFrames;
+use voxoct::turntable::{SimulatedTurntable, Turntable};
+
+use crate::{Args, Progress};
+
+/// Microsteps per turntable revolution of the simulated table: a 1.8° motor at quarter
+/// stepping (0.45° per step), the thesis's setting.
+const SIM_MICROSTEPS_PER_REV: u64 = 800;
+/// How long one frame may take to arrive.
+const GRAB_TIMEOUT: Duration = Duration::from_secs(5);
+/// How long one turn of the table may take.
+const TURN_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Scanner settings and a description of the source.
+pub struct Settings {
+    /// `[sensor]`, `[rig]`, `[clip]`.
+    pub config: ScannerConfig,
+    /// What the frames came from, for the stats.
+    pub source: String,
+}
+
+/// Everything acquired: settings and frames.
+pub struct Acquired {
+    /// Sensor, rig and clip box.
+    pub settings: Settings,
+    /// The snapshots in capture order.
+    pub snapshots: Vec<SnapshotFrames>,
+}
+
+/// Writes what was acquired as a recorded-scan directory.
+pub fn record(acquired: &Acquired, dir: &Path) -> Result<(), String> {
+    {
+        let mut manifest = ScanManifest::new(acquired.settings.config);
+        let mut frames = Vec::with_capacity(acquired.snapshots.len());
+        for (k, s) in acquired.snapshots.iter().enumerate() {
+            manifest.snapshots.push(SnapshotEntry {
+                angle_deg: s.angle_deg,
+                frames: (0..s.frames.len())
+                    .map(|j| PathBuf::from(format!("frames/s{k:03}_f{j:02}.png")))
+                    .collect(),
+            });
+            frames.push(s.frames.clone());
+        }
+        RecordedScan::write(dir, &manifest, &frames)
+            .map_err(|e| format!("--record-to {}: {e}", dir.display()))
+    }
+}
+
+/// Reads the `--config` file, if any.
+fn config_override(args: &Args) -> Result<Option<ScannerConfig>, String> {
+    args.config
+        .as_ref()
+        .map(|p| ScannerConfig::from_file(p).map_err(|e| format!("--config: {e}")))
+        .transpose()
+}
+
+/// Captures or loads the frames that `args` asks for.
+pub fn acquire(args: &Args, progress: &Progress) -> Result<Acquired, String> {
+    let config = config_override(args)?;
+    if let Some(dir) = &args.input {
+        return load_recorded(dir, config, progress);
+    }
+    if let Some(dir) = &args.fakenect {
+        return load_fakenect(dir, args, config);
+    }
+    if args.kinect {
+        return live::capture(args, config, progress);
+    }
+    simulate(args, config, progress)
+}
+
+fn load_recorded(
+    dir: &Path,
+    config: Option<ScannerConfig>,
+    progress: &Progress,
+) -> Result<Acquired, String> {
+    if !dir.is_dir() {
+        return Err(format!("--input {}: no such directory", dir.display()));
+    }
+    let pb = progress.stage("load", None);
+    pb.set_message(dir.display().to_string());
+    let mut scan = RecordedScan::open(dir).map_err(|e| format!("--input: {e}"))?;
+    if let Some(c) = &config {
+        scan.apply_config(c)
+            .map_err(|e| format!("--config does not fit {}: {e}", dir.display()))?;
+    }
+    pb.finish_and_clear();
+    let angles: Vec<f32> = scan
+        .manifest
+        .snapshots
+        .iter()
+        .map(|s| s.angle_deg)
+        .collect();
+    let settings = Settings {
+        config: scan.manifest.config(),
+        source: format!("recorded scan {}", dir.display()),
+    };
+    let snapshots = scan
+        .frames
+        .into_iter()
+        .zip(angles)
+        .map(|(frames, angle_deg)| SnapshotFrames { angle_deg, frames })
+        .collect();
+    Ok(Acquired {
+        settings,
+        snapshots,
+    })
+}
+
+fn load_fakenect(
+    dir: &Path,
+    args: &Args,
+    config: Option<ScannerConfig>,
+) -> Result<Acquired, String> {
+    let config = config.unwrap_or_default();
+    let degrees = args
+        .degrees_per_snapshot
+        .ok_or("--fakenect needs --degrees-per-snapshot D")?;
+    let mut source = FakenectSource::open(dir)
+        .and_then(|s| s.with_intrinsics(config.sensor.intrinsics))
+        .map_err(|e| format!("--fakenect: {e}"))?;
+    let count = source.depth_frame_count();
+    let per = args.frames as usize;
+    if count < per {
+        return Err(format!(
+            "--fakenect {}: {count} depth frames, fewer than --frames {per} for one snapshot",
+            dir.display()
+        ));
+    }
+    let mut snapshots = Vec::new();
+    for k in 0..count / per {
+        let frames = (0..per)
+            .map(|_| source.grab(GRAB_TIMEOUT))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| format!("--fakenect: {e}"))?;
+        snapshots.push(SnapshotFrames {
+            angle_deg: k as f32 * degrees,
+            frames,
+        });
+    }
+    let settings = Settings {
+        config,
+        source: format!("fakenect recording {}", dir.display()),
+    };
+    Ok(Acquired {
+        settings,
+        snapshots,
+    })
+}
+
+/// Turns the table through `n` equal steps, grabbing `frames` frames at each stop.
+fn capture<S: DepthSource + ?Sized>(
+    source: &mut S,
+    table: &mut dyn Turntable,
+    mut on_angle: impl FnMut(&mut S, f32),
+    args: &Args,
+    progress: &Progress,
+) -> Result<Vec<SnapshotFrames>, String> {
+    let n = args.snapshots;
+    let pb = progress.stage("capture", Some(u64::from(n)));
+    table.home().map_err(|e| format!("turntable: {e}"))?;
+    let mut snapshots = Vec::with_capacity(n as usize);
+    for k in 0..n {
+        let angle = table.angle_deg().map_err(|e| format!("turntable: {e}"))? as f32;
+        on_angle(source, angle);
+        let frames = (0..args.frames)
+            .map(|_| source.grab(GRAB_TIMEOUT))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| format!("depth source: {e}"))?;
+        snapshots.push(SnapshotFrames {
+            angle_deg: angle,
+            frames,
+        });
+        pb.inc(1);
+        if k + 1 < n {
+            table
+                .rotate_by(360.0 / f64::from(n), TURN_TIMEOUT)
+                .map_err(|e| format!("turntable: {e}"))?;
+        }
+    }
+    pb.finish_and_clear();
+    source
+        .shutdown()
+        .map_err(|e| format!("depth source: {e}"))?;
+    Ok(snapshots)
+}
+
+fn simulate(
+    args: &Args,
+    config: Option<ScannerConfig>,
+    progress: &Progress,
+) -> Result<Acquired, String> {
+    let (model, name) = match &args.model {
+        Some(path) => {
+            let mut m = voxoct::kinect::load_model(path).map_err(|e| format!("--model: {e}"))?;
+            if m.bounds().is_none_or(|b| {
+                b.min.y < -1e-6 || b.max.y > 0.4 || b.min.x.abs().max(b.max.x.abs()) > 0.15
+            }) {
+                // Not already standing on the platform inside the default clip box: place it there.
+                m.place_on_platform(0.12)
+                    .map_err(|e| format!("--model {}: {e}", path.display()))?;
+            }
+            (m, format!("simulated Kinect v1, model {}", path.display()))
+        }
+        None => {
+            let m = Model::builtin(&args.builtin).ok_or_else(|| {
+                format!(
+                    "--builtin {}: unknown model; choose one of {}",
+                    args.builtin,
+                    Model::BUILTIN_NAMES.join(", ")
+                )
+            })?;
+            (m, format!("simulated Kinect v1, built-in {}", args.builtin))
+        }
+    };
+    let config = config.unwrap_or_else(|| {
+        let sim = SimConfig::default();
+        ScannerConfig {
+            sensor: voxoct::depth::SensorConfig {
+                intrinsics: sim.intrinsics,
+                depth_unit_m: sim.unit_m,
+            },
+            rig: sim.rig,
+            ..ScannerConfig::default()
+        }
+    });
+    let sim_config = SimConfig {
+        intrinsics: config.sensor.intrinsics,
+        rig: config.rig,
+        unit_m: config.sensor.depth_unit_m,
+        seed: args.seed,
+        exact: args.exact,
+        ..SimConfig::default()
+    };
+    let mut kinect =
+        SimulatedKinect::new(&model, sim_config).map_err(|e| format!("simulator: {e}"))?;
+    let mut table =
+        SimulatedTurntable::new(SIM_MICROSTEPS_PER_REV).map_err(|e| format!("turntable: {e}"))?;
+    // The simulated sensor is told where the simulated table stands before each snapshot.
+    let snapshots = capture(
+        &mut kinect,
+        &mut table,
+        SimulatedKinect::set_turntable_angle_deg,
+        args,
+        progress,
+    )?;
+    Ok(Acquired {
+        settings: Settings {
+            config,
+            source: name,
+        },
+        snapshots,
+    })
+}
+
+/// Live capture: a Kinect v1 through libfreenect and a networked turntable.
+#[cfg(feature = "freenect")]
+mod live {
+    use super::*;
+    use voxoct::kinect::KinectSource;
+    use voxoct::turntable::{ClientTimeouts, RemoteTurntable};
+
+    pub fn capture(
+        args: &Args,
+        config: Option<ScannerConfig>,
+        progress: &Progress,
+    ) -> Result<Acquired, String> {
+        let addr = args
+            .turntable
+            .as_deref()
+            .ok_or("--kinect needs a turntable: --turntable HOST:PORT (examples/turntable_server.rs on the Pi)")?;
+        let config = config.ok_or("--kinect needs --config FILE with the rig's [sensor], [rig] and [clip] (see examples/thesis-rig.toml)")?;
+        // The sensor first: it is local, and without it there is nothing to turn the table for.
+        let mut kinect = KinectSource::open(0)
+            .and_then(|k| k.with_intrinsics(config.sensor.intrinsics))
+            .map_err(|e| format!("Kinect: {e}"))?;
+        let mut table =
+            RemoteTurntable::connect(addr, args.token.as_deref(), ClientTimeouts::default())
+                .map_err(|e| format!("turntable at {addr}: {e}"))?;
+        let snapshots = super::capture(&mut kinect, &mut table, |_, _| {}, args, progress)?;
+        Ok(Acquired {
+            settings: Settings {
+                config,
+                source: "Kinect v1".into(),
+            },
+            snapshots,
+        })
+    }
+}
+
+/// Without the `freenect` feature a live scan is not possible: say how to get one.
+#[cfg(not(feature = "freenect"))]
+mod live {
+    use super::*;
+
+    pub fn capture(_: &Args, _: Option<ScannerConfig>, _: &Progress) -> Result<Acquired, String> {
+        Err(
+            "--kinect needs the live sensor support: install libfreenect-dev and run with \
+             `cargo run --release --features freenect --example scan -- --kinect ...`"
+                .into(),
+        )
+    }
+}

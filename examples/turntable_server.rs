@@ -1,0 +1,255 @@
+//! `turntable_server`: the program the Raspberry Pi runs. It serves one
+//! turntable over TCP with the `VOXOCT-TT/1` protocol (see the
+//! `voxoct-turntable` crate docs); the scanning host connects with
+//! `RemoteTurntable`.
+//!
+//! ```sh
+//! # On any machine: a simulated table on loopback (for trying the protocol).
+//! cargo run --example turntable_server
+//! # On the Pi: real pins, reachable from the LAN, with a shared secret.
+//! VOXOCT_TT_TOKEN=s3cret cargo run --release --features gpio --example turntable_server -- \
+//!     --gpio --listen 0.0.0.0:7878 --microstep quarter --max-speed 30 --accel 60
+//! ```
+//!
+//! Stop it with Ctrl-C. Without a token anyone who can reach the port can
+//! turn the table: the program refuses to listen beyond loopback without
+//! one unless `--insecure` is given.
+
+use std::net::{SocketAddr, TcpListener, ToSocketAddrs};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::Parser;
+use voxoct_turntable::{
+    GpioPins, Microstep, ServerConfig, SimulatedTurntable, StepperConfig, Turntable, serve,
+};
+
+/// Environment variable read for the token when `--token` is not given.
+const TOKEN_ENV: &str = "VOXOCT_TT_TOKEN";
+
+/// Serve a turntable (A4988 stepper on GPIO, or simulated) over TCP.
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Args {
+    /// Address to listen on, HOST:PORT. Use 0.0.0.0:7878 to accept the LAN.
+    #[arg(long, default_value = "127.0.0.1:7878")]
+    listen: String,
+    /// Shared secret clients must present (printable ASCII, no spaces).
+    /// Default: the VOXOCT_TT_TOKEN environment variable, if set.
+    #[arg(long)]
+    token: Option<String>,
+    /// Listen beyond loopback without a token.
+    #[arg(long)]
+    insecure: bool,
+    /// Drive the real stepper on GPIO (needs a build with `--features gpio`).
+    #[arg(long)]
+    gpio: bool,
+    /// GPIO character device.
+    #[arg(long, default_value = "/dev/gpiochip0")]
+    gpio_chip: PathBuf,
+    /// GPIO line (BCM number) of STEP.
+    #[arg(long, default_value_t = 23)]
+    step_pin: u32,
+    /// GPIO line (BCM number) of DIR.
+    #[arg(long, default_value_t = 24)]
+    dir_pin: u32,
+    /// GPIO line (BCM number) of ENABLE, or `none` when tied to GND.
+    #[arg(long, default_value = "25")]
+    enable_pin: String,
+    /// GPIO lines of MS1,MS2,MS3 (e.g. `17,27,22`), or `none` when
+    /// hard-wired to match --microstep.
+    #[arg(long, default_value = "17,27,22")]
+    ms_pins: String,
+    /// Full steps per motor revolution.
+    #[arg(long, default_value_t = 200)]
+    steps_per_rev: u32,
+    /// Microstep mode: full, half, quarter, eighth, sixteenth.
+    #[arg(long, default_value = "quarter")]
+    microstep: Microstep,
+    /// Gear ratio TABLE_TEETH:MOTOR_TEETH (1:1 for direct drive).
+    #[arg(long, default_value = "1:1")]
+    gear: String,
+    /// Top speed of the table, degrees per second.
+    #[arg(long, default_value_t = 30.0)]
+    max_speed: f64,
+    /// Acceleration of the table, degrees per second².
+    #[arg(long, default_value_t = 60.0)]
+    accel: f64,
+    /// Swap the direction of rotation.
+    #[arg(long)]
+    invert: bool,
+    /// Release the motor (ENABLE high) between turns.
+    #[arg(long)]
+    disable_when_idle: bool,
+    /// Simulated table only: speed in degrees per second (default: instant).
+    #[arg(long)]
+    sim_speed: Option<f64>,
+    /// Print connection events.
+    #[arg(long, short)]
+    verbose: bool,
+}
+
+fn parse_pin(s: &str, what: &str) -> Result<Option<u32>, String> {
+    if s.eq_ignore_ascii_case("none") {
+        return Ok(None);
+    }
+    s.trim()
+        .parse()
+        .map(Some)
+        .map_err(|_| format!("--{what}: {s:?} is neither a GPIO line number nor `none`"))
+}
+
+fn parse_ms_pins(s: &str) -> Result<Option<[u32; 3]>, String> {
+    if s.eq_ignore_ascii_case("none") {
+        return Ok(None);
+    }
+    let parts: Vec<&str> = s.split(',').collect();
+    let err = || format!("--ms-pins: {s:?} must be three line numbers like 17,27,22, or `none`");
+    if parts.len() != 3 {
+        return Err(err());
+    }
+    let mut out = [0u32; 3];
+    for (o, p) in out.iter_mut().zip(parts) {
+        *o = p.trim().parse().map_err(|_| err())?;
+    }
+    Ok(Some(out))
+}
+
+fn parse_gear(s: &str) -> Result<(u32, u32), String> {
+    let err = || format!("--gear: {s:?} must be TABLE_TEETH:MOTOR_TEETH, e.g. 60:20");
+    let (a, b) = s.split_once(':').ok_or_else(err)?;
+    let a: u32 = a.trim().parse().map_err(|_| err())?;
+    let b: u32 = b.trim().parse().map_err(|_| err())?;
+    Ok((a, b))
+}
+
+fn stepper_config(args: &Args) -> Result<StepperConfig, String> {
+    let (table_teeth, motor_teeth) = parse_gear(&args.gear)?;
+    let config = StepperConfig {
+        full_steps_per_rev: args.steps_per_rev,
+        microstep: args.microstep,
+        gear_table_teeth: table_teeth,
+        gear_motor_teeth: motor_teeth,
+        max_speed_deg_s: args.max_speed,
+        accel_deg_s2: args.accel,
+        invert_direction: args.invert,
+        disable_when_idle: args.disable_when_idle,
+    };
+    config.step_rates().map_err(|e| e.to_string())?;
+    Ok(config)
+}
+
+fn gpio_pins(args: &Args) -> Result<GpioPins, String> {
+    Ok(GpioPins {
+        chip: args.gpio_chip.clone(),
+        step: args.step_pin,
+        dir: args.dir_pin,
+        enable: parse_pin(&args.enable_pin, "enable-pin")?,
+        microstep: parse_ms_pins(&args.ms_pins)?,
+    })
+}
+
+#[cfg(feature = "gpio")]
+fn open_gpio(pins: &GpioPins, config: StepperConfig) -> Result<Box<dyn Turntable + Send>, String> {
+    let table = voxoct_turntable::GpioTurntable::open(pins, config).map_err(|e| e.to_string())?;
+    Ok(Box::new(table))
+}
+
+#[cfg(not(feature = "gpio"))]
+fn open_gpio(
+    _pins: &GpioPins,
+    _config: StepperConfig,
+) -> Result<Box<dyn Turntable + Send>, String> {
+    Err(
+        "--gpio: this build has no GPIO support. How to fix: build with \
+         `cargo run --release --features gpio --example turntable_server -- --gpio ...` \
+         on the Raspberry Pi"
+            .into(),
+    )
+}
+
+fn run(args: Args) -> Result<(), String> {
+    let token = args
+        .token
+        .clone()
+        .or_else(|| std::env::var(TOKEN_ENV).ok().filter(|t| !t.is_empty()));
+    let addrs: Vec<SocketAddr> = args
+        .listen
+        .to_socket_addrs()
+        .map_err(|e| format!("--listen {:?}: not a HOST:PORT address ({e})", args.listen))?
+        .collect();
+    let exposed = addrs.iter().any(|a| !a.ip().is_loopback());
+    if exposed && token.is_none() && !args.insecure {
+        return Err(format!(
+            "--listen {}: refusing to accept the network without a token. How to fix: pass \
+             --token (or set {TOKEN_ENV}), or --insecure if you really mean it",
+            args.listen
+        ));
+    }
+
+    let config = stepper_config(&args)?;
+    let table: Box<dyn Turntable + Send> = if args.gpio {
+        let pins = gpio_pins(&args)?;
+        let table = open_gpio(&pins, config.clone())?;
+        eprintln!(
+            "turntable_server: A4988 on {} (STEP {}, DIR {}, ENABLE {:?}, MS {:?}), {} stepping",
+            pins.chip.display(),
+            pins.step,
+            pins.dir,
+            pins.enable,
+            pins.microstep,
+            config.microstep
+        );
+        table
+    } else {
+        let scale = config.scale().map_err(|e| e.to_string())?;
+        let mut sim = SimulatedTurntable::with_scale(scale);
+        if let Some(speed) = args.sim_speed {
+            sim = sim
+                .with_speed(speed)
+                .map_err(|e| format!("--sim-speed: {e}"))?;
+        }
+        eprintln!(
+            "turntable_server: simulated table, {} microsteps per revolution ({}° each)",
+            scale.microsteps_per_rev(),
+            scale.step_deg()
+        );
+        Box::new(sim)
+    };
+
+    let listener = TcpListener::bind(&addrs[..])
+        .map_err(|e| format!("--listen {}: cannot bind ({e})", args.listen))?;
+    let local = listener
+        .local_addr()
+        .map_err(|e| format!("reading the bound address: {e}"))?;
+    let server_config = ServerConfig {
+        token,
+        verbose: args.verbose,
+        idle_timeout: Duration::from_secs(600),
+        ..ServerConfig::default()
+    };
+    let has_token = server_config.token.is_some();
+    let handle = serve(listener, table, server_config).map_err(|e| e.to_string())?;
+    eprintln!(
+        "turntable_server: listening on {local} ({}); Ctrl-C to stop",
+        if has_token {
+            "token required"
+        } else {
+            "no token"
+        }
+    );
+    handle.join();
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(msg) => {
+            eprintln!("turntable_server: error: {msg}");
+            ExitCode::from(2)
+        }
+    }
+}

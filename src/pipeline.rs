@@ -1,0 +1,281 @@
+//! The whole reconstruction in one call: depth frames in, a closed oriented mesh out.
+//!
+//! Stages, each a call into one crate: filter the frames of every snapshot
+//! ([`voxoct_depth::FilterChain`]), back-project, transform and clip ([`voxoct_depth::Snapshot`]),
+//! triangulate by pixel adjacency ([`voxoct_depth::triangulate`]), mark the octree leaves every
+//! triangle overlaps ([`voxoct_core::Octree`]), and mesh the marked leaves
+//! ([`voxoct_mesh::mesh_cells`]). Snapshots are processed in parallel with the `parallel` feature.
+
+use std::time::{Duration, Instant};
+
+use voxoct_core::glam::Vec3;
+use voxoct_core::{Octree, OctreeError, Triangle};
+use voxoct_depth::{
+    DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain, ScannerConfig, Snapshot, triangulate,
+};
+use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions};
+
+#[cfg(feature = "parallel")]
+use rayon::prelude::*;
+
+/// The frames of one snapshot and the turntable angle they were taken at.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SnapshotFrames {
+    /// Turntable angle, degrees.
+    pub angle_deg: f32,
+    /// The raw frames (one or more; several feed the multi-frame filters).
+    pub frames: Vec<DepthFrame>,
+}
+
+/// The knobs of a reconstruction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Depth filter chain applied to each snapshot's frames.
+    pub filter: FilterChain,
+    /// Leaf size, metres: the real leaf edge is `root / 2^depth`, the largest not above this.
+    pub leaf_m: f32,
+    /// Edge of the octree's cubic root, metres; the root is centred on the clip box.
+    pub root_m: f32,
+    /// Largest squared triangle edge kept by the triangulation, m².
+    pub max_edge_sq: f32,
+    /// Mesh this many levels coarser than the leaves (level of detail).
+    pub lod: u32,
+    /// Meshing options. With `solid` and [`Floor::LowestMarked`], the floor is taken to be
+    /// the clip box's floor instead.
+    pub mesh: MeshOptions,
+}
+
+impl Default for Params {
+    /// 1 mm leaves in a 1 m root, the default filter, 1 cm triangle edges, the best-quality
+    /// meshing ([`MeshOptions::smooth`]).
+    fn default() -> Self {
+        Self {
+            filter: FilterChain::default(),
+            leaf_m: 0.001,
+            root_m: 1.0,
+            max_edge_sq: DEFAULT_MAX_EDGE_SQ,
+            lod: 0,
+            mesh: MeshOptions::smooth(),
+        }
+    }
+}
+
+/// The stages, in order, as reported to the progress callback.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Filtering each snapshot's frames into one frame.
+    Filter,
+    /// Back-projection, transform, clipping and triangulation.
+    Triangulate,
+    /// Octree insertion.
+    Insert,
+    /// Pseudo-voxels and marching tetrahedra.
+    Mesh,
+}
+
+/// Wall-clock time of each stage.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Timings {
+    /// [`Stage::Filter`].
+    pub filter: Duration,
+    /// [`Stage::Triangulate`].
+    pub triangulate: Duration,
+    /// [`Stage::Insert`].
+    pub insert: Duration,
+    /// [`Stage::Mesh`].
+    pub mesh: Duration,
+}
+
+/// What a reconstruction produced.
+#[derive(Debug)]
+pub struct Reconstruction {
+    /// The closed, oriented mesh (metres, platform frame).
+    pub mesh: Mesh,
+    /// The octree with every marked leaf.
+    pub tree: Octree,
+    /// Number of triangles inserted into the octree.
+    pub triangles_in: usize,
+    /// Time per stage.
+    pub timings: Timings,
+}
+
+/// Why a reconstruction failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PipelineError {
+    /// A snapshot's frames could not be filtered or back-projected.
+    #[error("snapshot {index} (turntable at {angle_deg}°): {source}")]
+    Snapshot {
+        /// Index of the snapshot.
+        index: usize,
+        /// Its turntable angle.
+        angle_deg: f32,
+        /// What went wrong.
+        #[source]
+        source: DepthError,
+    },
+    /// The octree could not be built (leaf larger than the root, non-finite sizes, too deep).
+    #[error("octree (root {root_m} m, leaf {leaf_m} m): {source}")]
+    Octree {
+        /// The root edge asked for.
+        root_m: f32,
+        /// The leaf size asked for.
+        leaf_m: f32,
+        /// What went wrong.
+        #[source]
+        source: OctreeError,
+    },
+    /// `lod` is more levels than the octree has.
+    #[error("level of detail {lod} is more levels than the octree has ({depth})")]
+    Lod {
+        /// Levels asked for.
+        lod: u32,
+        /// The octree's depth.
+        depth: u32,
+    },
+    /// Meshing failed (an option out of range, a solid fill too large).
+    #[error("meshing: {0}")]
+    Mesh(#[from] MeshError),
+    /// No snapshots were given.
+    #[error("no snapshots to reconstruct")]
+    NoSnapshots,
+    /// A parameter is out of range.
+    #[error("{name} = {value}: {reason}")]
+    Param {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f32,
+        /// Why it is refused.
+        reason: &'static str,
+    },
+}
+
+/// Runs the whole reconstruction. `on_stage` is called as each stage starts.
+///
+/// Takes the snapshots by value so that their frames are freed as soon as they are filtered.
+///
+/// # Errors
+/// [`PipelineError`] naming the snapshot, parameter or stage that failed.
+pub fn reconstruct(
+    config: &ScannerConfig,
+    snapshots: Vec<SnapshotFrames>,
+    params: &Params,
+    mut on_stage: impl FnMut(Stage),
+) -> Result<Reconstruction, PipelineError> {
+    if snapshots.is_empty() {
+        return Err(PipelineError::NoSnapshots);
+    }
+    if !(params.max_edge_sq.is_finite() && params.max_edge_sq > 0.0) {
+        return Err(PipelineError::Param {
+            name: "max_edge_sq",
+            value: params.max_edge_sq,
+            reason: "must be a positive squared length in m²",
+        });
+    }
+    let mut timings = Timings::default();
+
+    on_stage(Stage::Filter);
+    let t = Instant::now();
+    let angles: Vec<f32> = snapshots.iter().map(|s| s.angle_deg).collect();
+    let filtered = map_snapshots(snapshots, |index, s| {
+        params
+            .filter
+            .apply(&s.frames)
+            .map_err(|source| PipelineError::Snapshot {
+                index,
+                angle_deg: s.angle_deg,
+                source,
+            })
+    })?;
+    timings.filter = t.elapsed();
+
+    on_stage(Stage::Triangulate);
+    let t = Instant::now();
+    let intrinsics = config.sensor.intrinsics;
+    let per_snapshot = map_snapshots(
+        filtered.into_iter().zip(angles).collect(),
+        |index, (frame, angle_deg)| {
+            let snap =
+                Snapshot::from_frame(&frame, &intrinsics, &config.rig, angle_deg, &config.clip)
+                    .map_err(|source| PipelineError::Snapshot {
+                        index,
+                        angle_deg,
+                        source,
+                    })?;
+            let mut tris = Vec::new();
+            triangulate(&snap, params.max_edge_sq, &mut tris);
+            Ok(tris)
+        },
+    )?;
+    let triangles: Vec<Triangle> = per_snapshot.concat();
+    timings.triangulate = t.elapsed();
+
+    on_stage(Stage::Insert);
+    let t = Instant::now();
+    let centre = (config.clip.min + config.clip.max) * 0.5;
+    let mut tree = Octree::new(
+        centre - Vec3::splat(params.root_m * 0.5),
+        params.root_m,
+        params.leaf_m,
+    )
+    .map_err(|source| PipelineError::Octree {
+        root_m: params.root_m,
+        leaf_m: params.leaf_m,
+        source,
+    })?;
+    #[cfg(feature = "parallel")]
+    tree.par_insert(&triangles);
+    #[cfg(not(feature = "parallel"))]
+    tree.insert_all(&triangles);
+    let triangles_in = triangles.len();
+    drop(triangles);
+    timings.insert = t.elapsed();
+
+    on_stage(Stage::Mesh);
+    let t = Instant::now();
+    let depth = tree
+        .depth()
+        .checked_sub(params.lod)
+        .ok_or(PipelineError::Lod {
+            lod: params.lod,
+            depth: tree.depth(),
+        })?;
+    let mut options = params.mesh;
+    if options.solid && options.floor == Floor::LowestMarked {
+        options.floor = Floor::Y(config.clip.min.y);
+    }
+    let mesh = voxoct_mesh::mesh_cells(&tree.cells_at_depth(depth), &tree.grid(depth), &options)?;
+    timings.mesh = t.elapsed();
+
+    Ok(Reconstruction {
+        mesh,
+        tree,
+        triangles_in,
+        timings,
+    })
+}
+
+/// Applies `f` to every item with its index, in parallel with the `parallel` feature,
+/// keeping the order; the first error wins.
+fn map_snapshots<I: Send, O: Send>(
+    items: Vec<I>,
+    f: impl Fn(usize, I) -> Result<O, PipelineError> + Sync + Send,
+) -> Result<Vec<O>, PipelineError> {
+    #[cfg(feature = "parallel")]
+    {
+        items
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, x)| f(i, x))
+            .collect()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        items
+            .into_iter()
+            .enumerate()
+            .map(|(i, x)| f(i, x))
+            .collect()
+    }
+}

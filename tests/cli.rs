@@ -1,0 +1,224 @@
+//! The `scan` example as a user runs it: a small scan end to end, and every kind of bad input
+//! ending with one clear line on stderr, a non-zero exit, no panic and no file at `--out`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The `scan` example binary that `cargo test` built next to this test.
+fn scan_bin() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    // target/<profile>/deps/cli-<hash> → target/<profile>/examples/scan
+    let dir = exe.parent().and_then(Path::parent).unwrap();
+    let bin = dir
+        .join("examples")
+        .join(format!("scan{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        bin.exists(),
+        "{} not built: run the tests with `cargo test` (it builds the examples)",
+        bin.display()
+    );
+    bin
+}
+
+fn scan(args: &[&str], cwd: &Path) -> Output {
+    Command::new(scan_bin())
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap()
+}
+
+/// Asserts a clean failure: non-zero exit, one `error:` line naming `needle`, no panic,
+/// no output file.
+fn assert_fails(args: &[&str], needle: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = scan(&[args, &["--out", "x.stl", "-q"]].concat(), dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} should fail");
+    assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.to_lowercase().contains(&needle.to_lowercase())),
+        "{args:?}: stderr should mention {needle:?}: {stderr}"
+    );
+    assert!(
+        !dir.path().join("x.stl").exists(),
+        "{args:?} left a file at --out"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(
+        leftovers.is_empty(),
+        "{args:?} left files behind: {leftovers:?}"
+    );
+}
+
+#[test]
+fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = scan(
+        &[
+            "--builtin",
+            "sphere",
+            "--snapshots",
+            "4",
+            "--frames",
+            "1",
+            "--leaf",
+            "0.003",
+            "--stats",
+            "s.json",
+            "--preview",
+            "p.png",
+            "--out",
+            "s.stl",
+            "--record-to",
+            "rec",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("s.json")).unwrap()).unwrap();
+    for key in [
+        "snapshots",
+        "frames",
+        "triangles_in",
+        "leaves",
+        "leaf_size_m",
+        "mesh_triangles",
+        "mesh_vertices",
+        "closed_manifold",
+        "peak_rss_bytes",
+    ] {
+        assert!(stats.get(key).is_some(), "stats lack {key}: {stats}");
+    }
+    for key in [
+        "load",
+        "filter",
+        "triangulate",
+        "insert",
+        "mesh",
+        "write",
+        "total",
+    ] {
+        assert!(
+            stats["seconds"][key].as_f64().is_some(),
+            "stats lack seconds.{key}"
+        );
+    }
+    assert_eq!(stats["closed_manifold"], true);
+    assert_eq!(stats["snapshots"], 4);
+    // mm by default: a 12 cm sphere is ~120 units wide.
+    let soup = voxoct::stl::read_file(dir.path().join("s.stl")).unwrap();
+    let max_x = soup
+        .iter()
+        .flat_map(|t| t.v)
+        .map(|p| p.x)
+        .fold(f32::MIN, f32::max);
+    assert!(
+        (50.0..80.0).contains(&max_x),
+        "STL not in millimetres: max x {max_x}"
+    );
+    assert!(std::fs::metadata(dir.path().join("p.png")).unwrap().len() > 1000);
+
+    // The recorded scan reprocesses to the same mesh.
+    let again = scan(
+        &[
+            "--input",
+            "rec",
+            "--leaf",
+            "0.003",
+            "--out",
+            "again.stl",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    assert_eq!(
+        std::fs::read(dir.path().join("s.stl")).unwrap(),
+        std::fs::read(dir.path().join("again.stl")).unwrap()
+    );
+}
+
+#[test]
+fn bad_flags_fail_cleanly() {
+    assert_fails(&["--leaf", "2", "--root", "1"], "--leaf");
+    assert_fails(&["--leaf", "-0.001"], "--leaf");
+    assert_fails(&["--threshold", "-1"], "--threshold");
+    assert_fails(&["--snapshots", "0"], "--snapshots");
+    assert_fails(&["--builtin", "teapot"], "teapot");
+    assert_fails(
+        &[
+            "--lod",
+            "40",
+            "--snapshots",
+            "1",
+            "--frames",
+            "1",
+            "--leaf",
+            "0.01",
+        ],
+        "level of detail",
+    );
+    assert_fails(&["--filter", "bogus"], "bogus");
+    assert_fails(&["--turntable", "127.0.0.1:1"], "--kinect");
+}
+
+#[test]
+fn bad_files_fail_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    assert_fails(&["--input", d.join("missing").to_str().unwrap()], "missing");
+    assert_fails(
+        &["--model", d.join("nope.stl").to_str().unwrap()],
+        "nope.stl",
+    );
+    assert_fails(
+        &[
+            "--fakenect",
+            d.join("nofk").to_str().unwrap(),
+            "--degrees-per-snapshot",
+            "45",
+        ],
+        "nofk",
+    );
+
+    // A malformed scan.toml, a malformed config, a frame of the wrong size.
+    let bad = d.join("bad");
+    std::fs::create_dir_all(bad.join("frames")).unwrap();
+    std::fs::write(
+        bad.join("scan.toml"),
+        "format = \"voxoct-scan\"\nversion = 1\n[sensor]\nwidth = \"x\"\n",
+    )
+    .unwrap();
+    assert_fails(&["--input", bad.to_str().unwrap()], "width");
+    let cfg = d.join("cfg.toml");
+    std::fs::write(&cfg, "[rig]\ntilt_deg = 10.0\n").unwrap();
+    assert_fails(&["--config", cfg.to_str().unwrap()], "cfg.toml");
+
+    let garbage = d.join("garbage.stl");
+    std::fs::write(
+        &garbage,
+        b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 1 2\n",
+    )
+    .unwrap();
+    assert_fails(&["--model", garbage.to_str().unwrap()], "garbage.stl");
+}
+
+#[test]
+fn live_scan_without_hardware_is_a_clear_error() {
+    // No Kinect here: either the feature is off (say how to build it) or no device is found.
+    assert_fails(&["--kinect", "--turntable", "127.0.0.1:1"], "Kinect");
+}
