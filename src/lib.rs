@@ -44,4 +44,5 @@ pub use voxoct_mesh as mesh;
 pub use voxoct_stl as stl;
 pub use voxoct_turntable as turntable;
 
+pub mod carve;
 pub mod pipeline;

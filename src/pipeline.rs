@@ -4,16 +4,20 @@
 //! ([`voxoct_depth::FilterChain`]), back-project, transform and clip ([`voxoct_depth::Snapshot`]),
 //! triangulate by pixel adjacency ([`voxoct_depth::triangulate`]), mark the octree leaves every
 //! triangle overlaps ([`voxoct_core::Octree`]), and mesh the marked leaves
-//! ([`voxoct_mesh::mesh_cells`]). Snapshots are processed in parallel with the `parallel` feature.
+//! ([`voxoct_mesh::mesh_cells`]) — in solid mode together with the cells that no frame could
+//! see ([`crate::carve`]). Snapshots are processed in parallel with the `parallel` feature.
 
 use std::time::{Duration, Instant};
 
 use voxoct_core::glam::Vec3;
 use voxoct_core::{Octree, OctreeError, Triangle};
 use voxoct_depth::{
-    DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain, ScannerConfig, Snapshot, triangulate,
+    DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain, ScannerConfig, Snapshot,
+    kinect_v1_sigma, triangulate,
 };
 use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions};
+
+use crate::carve::{CarveView, with_hidden_cells};
 
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
@@ -43,6 +47,12 @@ pub struct Params {
     /// Meshing options. With `solid` and [`Floor::LowestMarked`], the floor is taken to be
     /// the clip box's floor instead.
     pub mesh: MeshOptions,
+    /// Drop connected pieces of the mesh with fewer triangles than this fraction of the
+    /// largest piece (stray blobs of errant readings, bubbles inside the solid); 0 keeps all.
+    pub min_piece_fraction: f32,
+    /// With a solid mesh: fill what no frame could see ([`crate::carve`]), so the solid
+    /// closes over the unseen underside instead of leaking into a hollow shell there.
+    pub carve: bool,
 }
 
 impl Default for Params {
@@ -56,6 +66,8 @@ impl Default for Params {
             max_edge_sq: DEFAULT_MAX_EDGE_SQ,
             lod: 0,
             mesh: MeshOptions::smooth(),
+            carve: true,
+            min_piece_fraction: 0.01,
         }
     }
 }
@@ -193,21 +205,18 @@ pub fn reconstruct(
     on_stage(Stage::Triangulate);
     let t = Instant::now();
     let intrinsics = config.sensor.intrinsics;
-    let per_snapshot = map_snapshots(
-        filtered.into_iter().zip(angles).collect(),
-        |index, (frame, angle_deg)| {
-            let snap =
-                Snapshot::from_frame(&frame, &intrinsics, &config.rig, angle_deg, &config.clip)
-                    .map_err(|source| PipelineError::Snapshot {
-                        index,
-                        angle_deg,
-                        source,
-                    })?;
-            let mut tris = Vec::new();
-            triangulate(&snap, params.max_edge_sq, &mut tris);
-            Ok(tris)
-        },
-    )?;
+    let jobs: Vec<(&DepthFrame, f32)> = filtered.iter().zip(angles.iter().copied()).collect();
+    let per_snapshot = map_snapshots(jobs, |index, (frame, angle_deg)| {
+        let snap = Snapshot::from_frame(frame, &intrinsics, &config.rig, angle_deg, &config.clip)
+            .map_err(|source| PipelineError::Snapshot {
+            index,
+            angle_deg,
+            source,
+        })?;
+        let mut tris = Vec::new();
+        triangulate(&snap, params.max_edge_sq, &mut tris);
+        Ok(tris)
+    })?;
     let triangles: Vec<Triangle> = per_snapshot.concat();
     timings.triangulate = t.elapsed();
 
@@ -245,7 +254,35 @@ pub fn reconstruct(
     if options.solid && options.floor == Floor::LowestMarked {
         options.floor = Floor::Y(config.clip.min.y);
     }
-    let mesh = voxoct_mesh::mesh_cells(&tree.cells_at_depth(depth), &tree.grid(depth), &options)?;
+    let grid = tree.grid(depth);
+    let mut cells = tree.cells_at_depth(depth);
+    if params.carve && options.solid {
+        let views: Vec<CarveView<'_>> = filtered
+            .iter()
+            .zip(&angles)
+            .map(|(frame, &angle)| CarveView {
+                frame,
+                intrinsics,
+                object_to_camera: config.rig.camera_to_object(angle).inverse(),
+            })
+            .collect();
+        // Two standard deviations of the sensor's depth noise at the object's distance,
+        // plus half a cell diagonal.
+        let distance = config.rig.sensor_position_m.length();
+        let margin = 2.0 * kinect_v1_sigma(distance) + 0.87 * grid.cell;
+        let floor = match options.floor {
+            Floor::Y(y) => ((y - grid.origin.y) / grid.cell - 0.5).ceil().max(0.0) as u32,
+            _ => 0,
+        };
+        cells = with_hidden_cells(cells, &grid, &views, margin, floor);
+    }
+    drop(filtered);
+    let mut mesh = voxoct_mesh::mesh_cells(&cells, &grid, &options)?;
+    drop(cells);
+    if params.min_piece_fraction > 0.0 {
+        let largest = mesh.largest_component_triangles();
+        mesh.remove_small_components((params.min_piece_fraction * largest as f32).ceil() as usize);
+    }
     timings.mesh = t.elapsed();
 
     Ok(Reconstruction {

@@ -80,8 +80,40 @@ fn assert_stl_watertight(mesh: &Mesh) {
     }
 }
 
-/// Share of the model's surface samples above the floor that lie within `tol` of the mesh.
-fn completeness(model: &Model, mesh: &Mesh, floor_y: f32, tol: f32) -> f32 {
+/// Share of the model's VISIBLE surface samples above the floor that lie within `tol` of the
+/// mesh. A sample is visible when some snapshot's exact (noise-free) depth image sees it:
+/// built-in models may be unions of overlapping closed parts whose buried surfaces no sensor
+/// can see.
+fn completeness(model: &Model, n_views: u32, mesh: &Mesh, floor_y: f32, tol: f32) -> f32 {
+    let sim = SimConfig {
+        exact: true,
+        ..SimConfig::default()
+    };
+    let mut kinect = SimulatedKinect::new(model, sim).unwrap();
+    let views: Vec<(voxoct::core::glam::Affine3A, Vec<f32>)> = (0..n_views)
+        .map(|k| {
+            let angle = 360.0 / n_views as f32 * k as f32;
+            kinect.set_turntable_angle_deg(angle);
+            (
+                sim.rig.camera_to_object(angle).inverse(),
+                kinect.exact_depth_m().to_vec(),
+            )
+        })
+        .collect();
+    let intr = sim.intrinsics;
+    let visible = |p: Vec3| {
+        views.iter().any(|(to_cam, depth)| {
+            let q = to_cam.transform_point3(p);
+            intr.project(q).is_some_and(|(u, v, z)| {
+                let (u, v) = (u.round(), v.round());
+                u >= 0.0
+                    && v >= 0.0
+                    && u < intr.width as f32
+                    && v < intr.height as f32
+                    && (depth[v as usize * intr.width as usize + u as usize] - z).abs() < 0.002
+            })
+        })
+    };
     let out = TriMesh::new(mesh.vertices.clone(), mesh.triangles.clone()).unwrap();
     let tris = model.triangles();
     let areas: Vec<f32> = tris
@@ -89,7 +121,7 @@ fn completeness(model: &Model, mesh: &Mesh, floor_y: f32, tol: f32) -> f32 {
         .map(|t| 0.5 * t.scaled_normal().length())
         .collect();
     let total: f32 = areas.iter().sum();
-    // Deterministic stratified samples: ~20 000 points, area-weighted.
+    // Deterministic samples: ~20 000 points, area-weighted.
     let mut state = 0x2545_f491_4f6c_dd1d_u64;
     let mut rnd = move || {
         state ^= state << 13;
@@ -106,7 +138,7 @@ fn completeness(model: &Model, mesh: &Mesh, floor_y: f32, tol: f32) -> f32 {
                 (u, v) = (1.0 - u, 1.0 - v);
             }
             let p = t.v[0] + (t.v[1] - t.v[0]) * u + (t.v[2] - t.v[0]) * v;
-            if p.y < floor_y {
+            if p.y < floor_y || !visible(p) {
                 continue;
             }
             all += 1;
@@ -115,7 +147,8 @@ fn completeness(model: &Model, mesh: &Mesh, floor_y: f32, tol: f32) -> f32 {
             }
         }
     }
-    near as f32 / all.max(1) as f32
+    assert!(all > 1000, "too few visible samples: {all}");
+    near as f32 / all as f32
 }
 
 /// The checks every scan of a closed model must pass.
@@ -131,12 +164,13 @@ fn assert_good_scan(name: &str, leaf: f32, min_complete: f32) {
     let leaf = r.tree.leaf_edge();
     let mb = model.bounds().unwrap();
     let stats = mesh.stats();
-    // Bounding box: within a few leaves of the model's (the floor is the clip box's).
+    // Bounding box: within a few leaves of the model's (the floor is the clip box's). Noise
+    // at grazing angles and the filled unseen underside (carving) may add a little.
     let lo = Vec3::new(mb.min.x, config.clip.min.y, mb.min.z);
     let bounds = stats.bounds.expect("a non-empty mesh has bounds");
     for (got, want, what) in [(bounds.min, lo, "min"), (bounds.max, mb.max, "max")] {
         assert!(
-            (got - want).abs().max_element() <= 3.0 * leaf,
+            (got - want).abs().max_element() <= 4.0 * leaf,
             "{name}: bounds {what} {got} vs model {want}"
         );
     }
@@ -148,7 +182,7 @@ fn assert_good_scan(name: &str, leaf: f32, min_complete: f32) {
         stats.volume
     );
     // Completeness of the visible surface within two leaves.
-    let c = completeness(&model, mesh, config.clip.min.y + 2.0 * leaf, 2.0 * leaf);
+    let c = completeness(&model, 8, mesh, config.clip.min.y + 2.0 * leaf, 2.0 * leaf);
     assert!(
         c >= min_complete,
         "{name}: completeness {c} < {min_complete}"

@@ -151,6 +151,10 @@ struct Args {
     /// Place vertices at the leaf centres' midpoints (binary field) instead of the surface.
     #[arg(long, help_heading = "Meshing")]
     binary: bool,
+    /// Do not fill the space no frame could see (the unseen underside stays open to the
+    /// solid fill, which may then leave the shell hollow there).
+    #[arg(long, help_heading = "Meshing")]
+    no_carve: bool,
     /// Taubin smoothing iterations (0 = none).
     #[arg(long, value_name = "N", help_heading = "Meshing")]
     smooth: Option<u32>,
@@ -300,6 +304,7 @@ fn run(args: &Args) -> Result<(), String> {
         max_edge_sq: args.threshold,
         lod: args.lod,
         mesh: mesh_options(args),
+        carve: !args.no_carve,
     };
     let mut bar: Option<ProgressBar> = None;
     let result = reconstruct(&settings.config, snapshots, &params, |stage| {
@@ -456,12 +461,12 @@ fn check_args(args: &Args) -> Result<(), String> {
             args.frames
         ));
     }
-    if let Some(d) = args.degrees_per_snapshot {
-        if !d.is_finite() || d.abs() > 360.0 {
-            return Err(format!(
-                "--degrees-per-snapshot must be a finite angle within ±360, got {d}"
-            ));
-        }
+    if let Some(d) = args.degrees_per_snapshot
+        && (!d.is_finite() || d.abs() > 360.0)
+    {
+        return Err(format!(
+            "--degrees-per-snapshot must be a finite angle within ±360, got {d}"
+        ));
     }
     if args.turntable.is_some() && !args.kinect {
         return Err("--turntable is for live scans: add --kinect".into());

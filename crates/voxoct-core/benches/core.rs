@@ -73,6 +73,46 @@ fn cpu_ns_per_item(reps: usize, items: usize, mut f: impl FnMut()) -> Option<f64
     Some((thread_cpu_ns()? - t0) as f64 / (reps * items) as f64)
 }
 
+/// CPU ns of every thread of the process, by thread id (Linux; empty elsewhere).
+fn threads_cpu_ns() -> Vec<(u64, u64)> {
+    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
+        return Vec::new();
+    };
+    dir.filter_map(|e| {
+        let e = e.ok()?;
+        let tid: u64 = e.file_name().to_str()?.parse().ok()?;
+        let s = std::fs::read_to_string(e.path().join("schedstat")).ok()?;
+        Some((tid, s.split_whitespace().next()?.parse().ok()?))
+    })
+    .collect()
+}
+
+/// Runs `f` `reps` times and returns the CPU ns per item of the busiest thread and of
+/// all threads together: a load-independent view of parallel scaling (the busiest
+/// thread is the critical path when every thread has a core of its own).
+fn busiest_and_total_cpu_ns(reps: usize, items: usize, mut f: impl FnMut()) -> Option<(f64, f64)> {
+    f();
+    let before = threads_cpu_ns();
+    for _ in 0..reps {
+        f();
+    }
+    let after = threads_cpu_ns();
+    if after.is_empty() {
+        return None;
+    }
+    let deltas: Vec<u64> = after
+        .iter()
+        .map(|&(tid, t)| {
+            let t0 = before.iter().find(|b| b.0 == tid).map_or(0, |b| b.1);
+            t.saturating_sub(t0)
+        })
+        .collect();
+    let per = (reps * items) as f64;
+    let max = deltas.iter().copied().max()? as f64 / per;
+    let sum = deltas.iter().sum::<u64>() as f64 / per;
+    Some((max, sum))
+}
+
 fn insert(c: &mut Criterion) {
     let tris = snapshot::triangles();
     let min = snapshot::root_min();
@@ -95,6 +135,23 @@ fn insert(c: &mut Criterion) {
         black_box(t.leaf_count());
     }) {
         eprintln!("serial insertion: {ns:.1} CPU ns per triangle (tree construction included)");
+    }
+    for threads in [1usize, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        if let Some((max, sum)) = busiest_and_total_cpu_ns(10, tris.len(), || {
+            pool.install(|| {
+                let mut t = Octree::new(min, 1.0, 0.001).unwrap();
+                t.par_insert(black_box(&tris));
+                black_box(t.leaf_count());
+            })
+        }) {
+            eprintln!(
+                "par_insert, {threads} thread(s): busiest thread {max:.1} CPU ns per triangle, all threads {sum:.1}"
+            );
+        }
     }
     let mut g = c.benchmark_group("insert");
     g.throughput(Throughput::Elements(tris.len() as u64));

@@ -152,9 +152,11 @@ fn span(a: f64, mn: f64, mx: f64) -> (f64, f64) {
 
 /// A triangle prepared for many box tests: axes and projections computed once.
 ///
-/// Every box test of the crate (the public function, the reference descent and the fast
-/// insertion) goes through [`TriangleSat::overlaps_skip_box_axes`] with the same `f64`
-/// box corners, so they all agree bit for bit.
+/// Every box test of the crate (the public function, the reference descent and the
+/// pruning of large blocks) goes through [`TriangleSat::overlaps_skip_box_axes`] with
+/// the same `f64` box corners; the fast insertion's [`TriangleSat::block4_mask`]
+/// evaluates the very same products, sums and comparisons for many cells at once, so
+/// they all agree bit for bit.
 #[derive(Debug, Clone)]
 pub(crate) struct TriangleSat {
     /// The triangle's bounding box (exact, `f32`).
@@ -182,9 +184,13 @@ impl TriangleSat {
     /// Prepares `tri`; `None` when a coordinate is not finite.
     #[inline(always)]
     pub(crate) fn new(tri: &Triangle) -> Option<Self> {
-        if !tri.is_finite() {
-            return None;
-        }
+        tri.is_finite().then(|| Self::of_finite(tri))
+    }
+
+    /// Prepares `tri`, whose coordinates the caller has checked to be finite (built
+    /// in place: no `Option` to move out of).
+    #[inline(always)]
+    pub(crate) fn of_finite(tri: &Triangle) -> Self {
         let v = [
             tri.v[0].as_dvec3(),
             tri.v[1].as_dvec3(),
@@ -206,7 +212,7 @@ impl TriangleSat {
         }
         let bmin = tri.v[0].min(tri.v[1]).min(tri.v[2]);
         let bmax = tri.v[0].max(tri.v[1]).max(tri.v[2]);
-        Some(Self {
+        Self {
             bmin,
             bmax,
             v0: v[0],
@@ -218,7 +224,7 @@ impl TriangleSat {
             eb,
             elo,
             ehi,
-        })
+        }
     }
 
     /// Whether the triangle has zero area (its computed normal is exactly zero: repeated

@@ -295,9 +295,10 @@ impl Octree {
     /// Degenerate triangles (zero area) and triangles with a non-finite coordinate mark
     /// nothing and return 0; parts outside the root are ignored.
     pub fn insert(&mut self, tri: &Triangle) -> usize {
-        let Some(sat) = TriangleSat::new(tri) else {
+        if !tri.is_finite() {
             return 0;
-        };
+        }
+        let sat = TriangleSat::of_finite(tri);
         if sat.is_degenerate() {
             return 0;
         }
@@ -335,8 +336,10 @@ impl Octree {
     /// The root is split into `8^3` regions (`8^depth` when `depth < 3`); each worker
     /// owns whole regions and inserts, in input order, the triangles whose bounding
     /// box reaches its region (a triangle spanning regions is handled by each). Every
-    /// leaf is therefore written by one worker, in input order. Speed-up needs the data
-    /// to span several regions (a root edge of at most ~8 times the object's size).
+    /// leaf is therefore written by one worker, in input order. The per-region lists
+    /// are built in parallel too (chunks of the input, concatenated in input order).
+    /// Speed-up needs the data to span several regions (a root edge of at most ~8
+    /// times the object's size).
     #[cfg(feature = "parallel")]
     pub fn par_insert(&mut self, tris: &[Triangle]) {
         use rayon::prelude::*;
@@ -412,9 +415,8 @@ impl Octree {
             let rc = demorton3(*ri as u64);
             let (base, last) = lay.region_span(rc);
             for &i in list.iter() {
-                let Some(sat) = TriangleSat::new(&tris[i as usize]) else {
-                    continue;
-                };
+                // Listed triangles are finite.
+                let sat = TriangleSat::of_finite(&tris[i as usize]);
                 if sat.is_degenerate() {
                     continue;
                 }
@@ -796,42 +798,84 @@ impl Region {
         lo: UVec3,
         hi: UVec3,
     ) -> usize {
-        let grid = lay.grid;
         let n = hi - lo + UVec3::ONE;
         if n.max_element() <= 4 {
-            let (mut mask, terms) = small_block(&grid, sat, lo, n);
-            let count = mask.count_ones() as usize;
-            // Per axis: brick coordinate and Morton bits of each cell of the block.
-            let l0 = lo - base;
-            let mut bcs = [[0u32; 4]; 3];
-            let mut bits = [[0u32; 4]; 3];
-            for a in 0..3 {
-                for t in 0..4 {
-                    let l = l0[a] + t as u32;
-                    bcs[a][t] = l >> 2;
-                    bits[a][t] = ((l & 1) | (l & 2) << 2) << a;
+            return self.insert_small(lay, base, sat, lo, n);
+        }
+        if n.max_element() <= 8 {
+            // Up to 2×2×2 blocks of the 4×4×4 path, not tested as wholes.
+            let mut count = 0;
+            for tz in 0..2u32 {
+                for ty in 0..2u32 {
+                    for tx in 0..2u32 {
+                        let a = lo + UVec3::new(tx, ty, tz) * 4;
+                        if a.cmple(hi).all() {
+                            let b = hi.min(a + UVec3::splat(3));
+                            count += self.insert_small(lay, base, sat, a, b - a + UVec3::ONE);
+                        }
+                    }
                 }
-            }
-            while mask != 0 {
-                let bit = mask.trailing_zeros();
-                mask &= mask - 1;
-                let (i, j, k) = (
-                    (bit & 3) as usize,
-                    ((bit >> 2) & 3) as usize,
-                    (bit >> 4) as usize,
-                );
-                let sdf = ((terms[0][i] + terms[1][j]) + terms[2][k]) as f32;
-                let bc = UVec3::new(bcs[0][i], bcs[1][j], bcs[2][k]);
-                let b = self.brick_at(bc, lay.levels);
-                self.add_known(b, bits[0][i] | bits[1][j] | bits[2][k], 1, sdf);
             }
             return count;
         }
-        let mut count = 0;
-        visit_cells(&grid, sat, lo, hi, &mut |c, sdf| {
-            count += 1;
-            self.mark(lay, c - base, 1, sdf);
-        });
+        // Large: prune with the test on the block's box (exact, thanks to the test's
+        // monotonicity and to grid corners that nest bit for bit), then halve.
+        let grid = &lay.grid;
+        let block = Aabb::new(grid.corner(lo), grid.corner(hi + UVec3::ONE));
+        if !sat.overlaps(&block) {
+            return 0;
+        }
+        let axis = if n.x >= n.y && n.x >= n.z {
+            0
+        } else if n.y >= n.z {
+            1
+        } else {
+            2
+        };
+        let mid = lo[axis] + n[axis] / 2;
+        let mut hi_a = hi;
+        hi_a[axis] = mid - 1;
+        let mut lo_b = lo;
+        lo_b[axis] = mid;
+        self.insert(lay, base, sat, lo, hi_a) + self.insert(lay, base, sat, lo_b, hi)
+    }
+
+    /// [`insert`](Self::insert) for a block of at most 4×4×4 cells from `lo`.
+    #[inline]
+    fn insert_small(
+        &mut self,
+        lay: &Layout,
+        base: UVec3,
+        sat: &TriangleSat,
+        lo: UVec3,
+        n: UVec3,
+    ) -> usize {
+        let (mut mask, terms) = small_block(&lay.grid, sat, lo, n);
+        let count = mask.count_ones() as usize;
+        // Per axis: brick coordinate and Morton bits of each cell of the block.
+        let l0 = lo - base;
+        let mut bcs = [[0u32; 4]; 3];
+        let mut bits = [[0u32; 4]; 3];
+        for a in 0..3 {
+            for t in 0..4 {
+                let l = l0[a] + t as u32;
+                bcs[a][t] = l >> 2;
+                bits[a][t] = ((l & 1) | (l & 2) << 2) << a;
+            }
+        }
+        while mask != 0 {
+            let bit = mask.trailing_zeros();
+            mask &= mask - 1;
+            let (i, j, k) = (
+                (bit & 3) as usize,
+                ((bit >> 2) & 3) as usize,
+                (bit >> 4) as usize,
+            );
+            let sdf = ((terms[0][i] + terms[1][j]) + terms[2][k]) as f32;
+            let bc = UVec3::new(bcs[0][i], bcs[1][j], bcs[2][k]);
+            let b = self.brick_at(bc, lay.levels);
+            self.add_known(b, bits[0][i] | bits[1][j] | bits[2][k], 1, sdf);
+        }
         count
     }
 
@@ -1068,73 +1112,6 @@ fn small_block(grid: &GridSpec, sat: &TriangleSat, lo: UVec3, n: UVec3) -> (u64,
         }
     }
     (sat.block4_mask(&planes, dims), terms)
-}
-
-/// Calls `f(cell, sdf)` for every cell of `lo..=hi` whose closed box the triangle
-/// overlaps, with the signed distance from the cell's centre to the triangle's plane
-/// (bit for bit [`TriangleSat::signed_distance`] of [`GridSpec::cell_center`]).
-/// Large blocks are pruned with the test on the block's box (exact, thanks to the
-/// test's monotonicity and to grid corners that nest bit for bit).
-fn visit_cells(
-    grid: &GridSpec,
-    sat: &TriangleSat,
-    lo: UVec3,
-    hi: UVec3,
-    f: &mut impl FnMut(UVec3, f32),
-) {
-    let n = (hi - lo + UVec3::ONE).as_u64vec3();
-    if n.max_element() <= 4 {
-        let (mut mask, terms) = small_block(grid, sat, lo, (hi - lo) + UVec3::ONE);
-        while mask != 0 {
-            let bit = mask.trailing_zeros();
-            mask &= mask - 1;
-            let (i, j, k) = (
-                (bit & 3) as usize,
-                ((bit >> 2) & 3) as usize,
-                (bit >> 4) as usize,
-            );
-            let sdf = ((terms[0][i] + terms[1][j]) + terms[2][k]) as f32;
-            f(lo + UVec3::new(i as u32, j as u32, k as u32), sdf);
-        }
-        return;
-    }
-    if n.max_element() <= 8 {
-        // Up to 2×2×2 tiles of the 4×4×4 path, untested as blocks.
-        let mid = lo + UVec3::splat(4);
-        for tz in 0..2u32 {
-            for ty in 0..2u32 {
-                for tx in 0..2u32 {
-                    let t = UVec3::new(tx, ty, tz);
-                    let a = lo + t * 4;
-                    if a.cmpgt(hi).any() {
-                        continue;
-                    }
-                    let b = hi.min(a + UVec3::splat(3));
-                    let _ = mid;
-                    visit_cells(grid, sat, a, b, f);
-                }
-            }
-        }
-        return;
-    }
-    let block = Aabb::new(grid.corner(lo), grid.corner(hi + UVec3::ONE));
-    if !sat.overlaps(&block) {
-        return;
-    }
-    let axis = if n.x >= n.y && n.x >= n.z {
-        0
-    } else if n.y >= n.z {
-        1
-    } else {
-        2
-    };
-    let mid = lo[axis] + (n[axis] / 2) as u32;
-    let mut hi_a = hi;
-    hi_a[axis] = mid - 1;
-    let mut lo_b = lo;
-    lo_b[axis] = mid;
-    visit_cells(grid, sat, lo, hi_a, f);
-    visit_cells(grid, sat, lo_b, hi, f);
 }
 
 #[inline]

@@ -346,6 +346,45 @@ impl Mesh {
         Ok(())
     }
 
+    /// Removes every connected piece of fewer than `min_triangles` triangles and the
+    /// vertices only they used; returns how many pieces were removed.
+    ///
+    /// On a closed, oriented 2-manifold this keeps the invariant: pieces share no vertex
+    /// (each vertex's fan is one disc), so each piece is closed on its own. Removing a small
+    /// outward piece deletes a stray blob; removing a small inward one (a bubble inside a
+    /// solid) fills the bubble.
+    pub fn remove_small_components(&mut self, min_triangles: usize) -> usize {
+        if min_triangles <= 1 || self.triangles.is_empty() {
+            return 0;
+        }
+        let (roots, size) = self.triangle_components();
+        let removed = size.iter().filter(|&&n| n > 0 && n < min_triangles).count();
+        if removed == 0 {
+            return 0;
+        }
+        let mut keep = roots.iter().map(|&r| size[r as usize] >= min_triangles);
+        self.triangles.retain(|_| keep.next().unwrap_or(true));
+        self.remove_unused_vertices();
+        removed
+    }
+
+    /// Triangles in the largest connected piece (0 for an empty mesh).
+    #[must_use]
+    pub fn largest_component_triangles(&self) -> usize {
+        self.triangle_components().1.into_iter().max().unwrap_or(0)
+    }
+
+    /// For each triangle its piece's root vertex, and for each root the piece's triangles.
+    fn triangle_components(&self) -> (Vec<u32>, Vec<usize>) {
+        let mut dsu = self.vertex_components();
+        let roots: Vec<u32> = self.triangles.iter().map(|t| dsu.find(t[0])).collect();
+        let mut size = vec![0usize; self.vertices.len()];
+        for &r in &roots {
+            size[r as usize] += 1;
+        }
+        (roots, size)
+    }
+
     /// Removes vertices that no triangle uses, renumbering the rest in order.
     pub fn remove_unused_vertices(&mut self) {
         let mut map = vec![u32::MAX; self.vertices.len()];

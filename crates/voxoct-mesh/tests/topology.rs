@@ -105,6 +105,22 @@ proptest! {
     }
 
     #[test]
+    fn removing_small_pieces_keeps_the_mesh_closed(cells in cells_strategy(300), min in 2usize..200) {
+        for opts in [MeshOptions::thesis(), MeshOptions::smooth()] {
+            let mut mesh = check(&cells, &opts)?;
+            let before = mesh.stats().components;
+            let removed = mesh.remove_small_components(min);
+            if mesh.triangles.is_empty() {
+                continue;
+            }
+            mesh.check_closed_manifold().map_err(|e| TestCaseError::fail(format!("{opts:?}: {e}")))?;
+            prop_assert_eq!(mesh.stats().components, before - removed);
+            // Every piece left has at least `min` triangles: removing again removes nothing.
+            prop_assert_eq!(mesh.remove_small_components(min), 0);
+        }
+    }
+
+    #[test]
     fn thousands_of_random_cells(cells in cells_strategy(3000)) {
         for opts in [MeshOptions::thesis(), MeshOptions::smooth()] {
             check(&cells, &opts)?;
