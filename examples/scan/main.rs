@@ -151,6 +151,14 @@ struct Args {
     /// Place vertices at the leaf centres' midpoints (binary field) instead of the surface.
     #[arg(long, help_heading = "Meshing")]
     binary: bool,
+    /// Drop pieces of the mesh smaller than this fraction of the largest (0 keeps all).
+    #[arg(
+        long,
+        value_name = "FRACTION",
+        default_value_t = 0.01,
+        help_heading = "Meshing"
+    )]
+    min_piece: f32,
     /// Do not fill the space no frame could see (the unseen underside stays open to the
     /// solid fill, which may then leave the shell hollow there).
     #[arg(long, help_heading = "Meshing")]
@@ -305,6 +313,7 @@ fn run(args: &Args) -> Result<(), String> {
         lod: args.lod,
         mesh: mesh_options(args),
         carve: !args.no_carve,
+        min_piece_fraction: args.min_piece,
     };
     let mut bar: Option<ProgressBar> = None;
     let result = reconstruct(&settings.config, snapshots, &params, |stage| {
@@ -447,6 +456,12 @@ fn check_args(args: &Args) -> Result<(), String> {
         return Err(format!(
             "--threshold must be a positive squared edge length in m², got {}",
             args.threshold
+        ));
+    }
+    if !(0.0..=1.0).contains(&args.min_piece) {
+        return Err(format!(
+            "--min-piece must be a fraction between 0 and 1, got {}",
+            args.min_piece
         ));
     }
     if args.snapshots == 0 || args.snapshots > 3600 {

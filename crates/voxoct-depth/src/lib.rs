@@ -59,15 +59,26 @@
 
 pub use glam;
 
+mod calibrate;
 mod error;
 mod filter;
+mod inspect;
 mod scan;
 mod snapshot;
 mod triangulate;
 mod types;
 
+pub use calibrate::{
+    AxisOptions, CalibError, CalibSnapshot, Calibration, Minimum, NelderMeadOptions, PlaneFit,
+    PlatformFit, PlatformOptions, RESIDUAL_CAP_M, RansacOptions, alignment_residual, calibrate,
+    calibrate_axis, calibrate_platform, fit_plane_ransac, nelder_mead,
+};
 pub use error::DepthError;
 pub use filter::{FILTER_NAMES, Filter, FilterChain, KINECT_V1_SIGMA_COEFF, kinect_v1_sigma};
+pub use inspect::{
+    DiffStats, RgbImage, depth_image, difference_image, invalid_counts, snapshot_colour,
+    snapshot_image, views_image, write_png,
+};
 pub use scan::{
     MANIFEST_FILE, MAX_ABS_ANGLE_DEG, MAX_FRAME_SIDE, RecordedScan, SCAN_FORMAT, SCAN_VERSION,
     ScanManifest, ScanWriter, ScannerConfig, SensorConfig, SnapshotEntry, read_png_frame,
