@@ -54,7 +54,12 @@ struct Args {
     )]
     fakenect: Option<PathBuf>,
     /// Turntable angle between consecutive snapshots of a fakenect recording.
-    #[arg(long, value_name = "D", help_heading = "Source")]
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "D",
+        help_heading = "Source"
+    )]
     degrees_per_snapshot: Option<f32>,
     /// Simulated scan of your own mesh (STL, binary or ASCII, or OBJ).
     #[arg(long, value_name = "FILE", help_heading = "Source")]
@@ -111,6 +116,7 @@ struct Args {
     /// Leaf size, metres (the real leaf edge is root / 2^depth, at most this).
     #[arg(
         long,
+        allow_negative_numbers = true,
         value_name = "M",
         default_value_t = 0.001,
         help_heading = "Reconstruction"
@@ -119,6 +125,7 @@ struct Args {
     /// Edge of the octree's cubic root, metres (centred on the clip box).
     #[arg(
         long,
+        allow_negative_numbers = true,
         value_name = "M",
         default_value_t = 1.0,
         help_heading = "Reconstruction"
@@ -127,6 +134,7 @@ struct Args {
     /// Largest squared triangle edge kept by the triangulation, m².
     #[arg(
         long,
+        allow_negative_numbers = true,
         value_name = "M2",
         default_value_t = 0.0001,
         help_heading = "Reconstruction"
@@ -154,6 +162,7 @@ struct Args {
     /// Drop pieces of the mesh smaller than this fraction of the largest (0 keeps all).
     #[arg(
         long,
+        allow_negative_numbers = true,
         value_name = "FRACTION",
         default_value_t = 0.01,
         help_heading = "Meshing"
