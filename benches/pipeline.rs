@@ -6,12 +6,11 @@
 
 use std::hint::black_box;
 use std::path::Path;
-use std::time::Duration;
 
 use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
-use voxoct::depth::{RecordedScan, ScannerConfig, SensorConfig};
-use voxoct::kinect::{DepthSource, SimConfig, SimulatedKinect};
-use voxoct::pipeline::{Params, SnapshotFrames, reconstruct};
+use voxoct::depth::{RecordedScan, ScannerConfig};
+use voxoct::kinect::{SimConfig, SimulatedKinect};
+use voxoct::pipeline::{Params, SnapshotFrames, reconstruct, simulate_scan};
 
 fn load() -> (String, ScannerConfig, Vec<SnapshotFrames>) {
     let bunny = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bunny-scan");
@@ -27,29 +26,8 @@ fn load() -> (String, ScannerConfig, Vec<SnapshotFrames>) {
             .collect();
         return ("bunny".into(), scan.manifest.config(), snapshots);
     }
-    let sim = SimConfig::default();
-    let mut kinect = SimulatedKinect::builtin("figurine", sim).expect("figurine");
-    let snapshots = (0..8)
-        .map(|k| {
-            let angle = 45.0 * k as f32;
-            kinect.set_turntable_angle_deg(angle);
-            let frames = (0..10)
-                .map(|_| kinect.grab(Duration::from_secs(5)).expect("frame"))
-                .collect();
-            SnapshotFrames {
-                angle_deg: angle,
-                frames,
-            }
-        })
-        .collect();
-    let config = ScannerConfig {
-        sensor: SensorConfig {
-            intrinsics: sim.intrinsics,
-            depth_unit_m: sim.unit_m,
-        },
-        rig: sim.rig,
-        ..ScannerConfig::default()
-    };
+    let mut kinect = SimulatedKinect::builtin("figurine", SimConfig::default()).expect("figurine");
+    let (config, snapshots) = simulate_scan(&mut kinect, 8, 10).expect("simulated scan");
     ("figurine".into(), config, snapshots)
 }
 

@@ -12,9 +12,10 @@ use std::time::{Duration, Instant};
 use voxoct_core::glam::Vec3;
 use voxoct_core::{Octree, OctreeError, Triangle};
 use voxoct_depth::{
-    DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain, ScannerConfig, Snapshot,
-    kinect_v1_sigma, triangulate,
+    DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain, ScannerConfig, SensorConfig,
+    Snapshot, kinect_v1_sigma, triangulate,
 };
+use voxoct_kinect::{DepthSource, SimulatedKinect, SourceError};
 use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions};
 
 use crate::carve::{CarveView, with_hidden_cells};
@@ -291,6 +292,40 @@ pub fn reconstruct(
         triangles_in,
         timings,
     })
+}
+
+/// Captures a simulated scan: `snapshots` equal turntable steps over a full turn, starting at
+/// 0°, with `frames` frames at each, from `kinect` (whose turntable angle it sets). Returns the
+/// scanner settings that match the simulator (its intrinsics, depth unit and rig, and the
+/// default clip box) and the snapshots, ready for [`reconstruct`].
+///
+/// # Errors
+/// The simulator's own errors (none for a valid configuration).
+pub fn simulate_scan(
+    kinect: &mut SimulatedKinect,
+    snapshots: u32,
+    frames: u32,
+) -> Result<(ScannerConfig, Vec<SnapshotFrames>), SourceError> {
+    let sim = *kinect.config();
+    let config = ScannerConfig {
+        sensor: SensorConfig {
+            intrinsics: sim.intrinsics,
+            depth_unit_m: sim.unit_m,
+        },
+        rig: sim.rig,
+        ..ScannerConfig::default()
+    };
+    let timeout = Duration::from_secs(5);
+    let mut out = Vec::with_capacity(snapshots as usize);
+    for k in 0..snapshots {
+        let angle_deg = 360.0 / snapshots as f32 * k as f32;
+        kinect.set_turntable_angle_deg(angle_deg);
+        let frames = (0..frames)
+            .map(|_| kinect.grab(timeout))
+            .collect::<Result<_, _>>()?;
+        out.push(SnapshotFrames { angle_deg, frames });
+    }
+    Ok((config, out))
 }
 
 /// Applies `f` to every item with its index, in parallel with the `parallel` feature,

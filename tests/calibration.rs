@@ -3,15 +3,15 @@
 //! 1 mm and the tilt within 0.2°, and a scan meshed with the recovered rig is as accurate as
 //! one meshed with the true rig, and clearly better than with the perturbed one.
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use voxoct::core::glam::Vec3;
 use voxoct::depth::{
     AxisOptions, CalibSnapshot, FilterChain, PlatformOptions, Rig, ScannerConfig, SensorConfig,
     calibrate,
 };
-use voxoct::kinect::{DepthSource, SimConfig, SimulatedKinect};
-use voxoct::pipeline::{Params, SnapshotFrames, reconstruct};
+use voxoct::kinect::{SimConfig, SimulatedKinect};
+use voxoct::pipeline::{Params, SnapshotFrames, reconstruct, simulate_scan};
 
 /// A simulated scan of `model` seen from `rig`: `n` snapshots over a full turn, `frames`
 /// frames each.
@@ -28,19 +28,7 @@ fn simulate(
         ..SimConfig::default()
     };
     let mut kinect = SimulatedKinect::builtin(model, sim).expect("built-in model");
-    let snapshots = (0..n)
-        .map(|k| {
-            let angle = 360.0 / n as f32 * k as f32;
-            kinect.set_turntable_angle_deg(angle);
-            let frames = (0..frames)
-                .map(|_| kinect.grab(Duration::from_secs(5)).expect("frame"))
-                .collect();
-            SnapshotFrames {
-                angle_deg: angle,
-                frames,
-            }
-        })
-        .collect();
+    let (_, snapshots) = simulate_scan(&mut kinect, n, frames).expect("simulated scan");
     (kinect, snapshots)
 }
 

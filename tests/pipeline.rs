@@ -2,15 +2,13 @@
 //! its STL watertight when read back, its volume, bounding box and completeness close to the
 //! model's; the same through a recorded-scan directory.
 
-use std::time::Duration;
-
 use parry3d::query::PointQuery;
 use parry3d::shape::TriMesh;
 use voxoct::core::glam::Vec3;
-use voxoct::depth::{RecordedScan, ScanManifest, ScannerConfig, SensorConfig, SnapshotEntry};
-use voxoct::kinect::{DepthSource, Model, SimConfig, SimulatedKinect};
+use voxoct::depth::{RecordedScan, ScanManifest, ScannerConfig, SnapshotEntry};
+use voxoct::kinect::{Model, SimConfig, SimulatedKinect};
 use voxoct::mesh::{Mesh, MeshOptions};
-use voxoct::pipeline::{Params, Reconstruction, SnapshotFrames, reconstruct};
+use voxoct::pipeline::{Params, Reconstruction, SnapshotFrames, reconstruct, simulate_scan};
 
 /// A simulated scan: `n` snapshots of `frames` frames of a built-in model.
 fn simulate(model: &str, n: u32, frames: u32, exact: bool) -> (ScannerConfig, Vec<SnapshotFrames>) {
@@ -20,28 +18,7 @@ fn simulate(model: &str, n: u32, frames: u32, exact: bool) -> (ScannerConfig, Ve
         ..SimConfig::default()
     };
     let mut kinect = SimulatedKinect::builtin(model, sim).expect("built-in model");
-    let config = ScannerConfig {
-        sensor: SensorConfig {
-            intrinsics: sim.intrinsics,
-            depth_unit_m: sim.unit_m,
-        },
-        rig: sim.rig,
-        ..ScannerConfig::default()
-    };
-    let snapshots = (0..n)
-        .map(|k| {
-            let angle = 360.0 / n as f32 * k as f32;
-            kinect.set_turntable_angle_deg(angle);
-            let frames = (0..frames)
-                .map(|_| kinect.grab(Duration::from_secs(5)).expect("frame"))
-                .collect();
-            SnapshotFrames {
-                angle_deg: angle,
-                frames,
-            }
-        })
-        .collect();
-    (config, snapshots)
+    simulate_scan(&mut kinect, n, frames).expect("simulated scan")
 }
 
 fn run(
@@ -174,10 +151,11 @@ fn assert_good_scan(name: &str, leaf: f32, min_complete: f32) {
             "{name}: bounds {what} {got} vs model {want}"
         );
     }
-    // Volume: the solid matches the model's within a few percent.
+    // Volume: the solid matches the model's within a few percent (what no view saw, such as
+    // the wedge under a ring standing on its rim, is filled: a little more, never hollow).
     let want = f64::from(model.signed_volume());
     assert!(
-        (stats.volume / want - 1.0).abs() < 0.06,
+        (stats.volume / want - 1.0).abs() < 0.08,
         "{name}: volume {} vs model {want}",
         stats.volume
     );
