@@ -51,6 +51,23 @@ enum Seen {
     Unknown,
 }
 
+/// `x.round()` (half away from zero) as an index when it lies in `0..len`, without a libm
+/// call (the baseline x86-64 target has no rounding instruction) and with one-instruction
+/// `i32` conversions.
+#[inline]
+fn pixel(x: f32, len: u32) -> Option<usize> {
+    // No frame is 2^24 pixels wide; below that, `len` and `x` are exact as f32 and i32.
+    let len = len.min(1 << 24) as i32;
+    // Rounds to 0 or more above -0.5 (NaN fails too).
+    if !(x > -0.5 && x < len as f32) {
+        return None;
+    }
+    // Exact: x and its integer part share the exponent range; in (-0.5, 0) t is 0.
+    let t = x as i32;
+    let r = t + i32::from(x - t as f32 >= 0.5);
+    (r < len).then_some(r as usize)
+}
+
 impl CarveView<'_> {
     #[inline]
     fn classify(&self, p: Vec3, margin: f32) -> Seen {
@@ -58,11 +75,10 @@ impl CarveView<'_> {
         let Some((u, v, z)) = self.intrinsics.project(q) else {
             return Seen::Unknown;
         };
-        let (u, v) = (u.round(), v.round());
-        if !(u >= 0.0 && v >= 0.0 && u < self.frame.width as f32 && v < self.frame.height as f32) {
+        let (Some(u), Some(v)) = (pixel(u, self.frame.width), pixel(v, self.frame.height)) else {
             return Seen::Unknown;
-        }
-        let raw = self.frame.data[v as usize * self.frame.width as usize + u as usize];
+        };
+        let raw = self.frame.data[v * self.frame.width as usize + u];
         if raw == 0 {
             return Seen::Unknown;
         }
@@ -96,6 +112,9 @@ pub fn hidden_cells(
     }
     let slab = |z: u32| {
         let mut out = Vec::new();
+        // The view that saw the last seen cell tries first (neighbours are mostly seen by the
+        // same view); the order does not change the result.
+        let mut first = 0;
         for y in lo.y..=hi.y {
             for x in lo.x..=hi.x {
                 let c = UVec3::new(x, y, z);
@@ -105,10 +124,11 @@ pub fn hidden_cells(
                 let p = grid.cell_center(c);
                 let mut behind = 0;
                 let mut seen = false;
-                for view in views {
-                    match view.classify(p, margin) {
+                for k in (first..views.len()).chain(0..first) {
+                    match views[k].classify(p, margin) {
                         Seen::Front | Seen::Near => {
                             seen = true;
+                            first = k;
                             break;
                         }
                         Seen::Behind => behind += 1,
@@ -188,6 +208,35 @@ mod tests {
         let mut f = DepthFrame::empty(i.width, i.height, 0.001);
         f.data.fill((dist * 1000.0) as u16);
         f
+    }
+
+    #[test]
+    fn pixel_rounds_like_round() {
+        for x in [
+            -1.0f32,
+            -0.5,
+            -0.49,
+            -0.0,
+            0.0,
+            0.25,
+            0.49999997,
+            0.5,
+            1.5,
+            2.5,
+            638.5,
+            639.49,
+            639.5,
+            640.0,
+            f32::NAN,
+            f32::INFINITY,
+            -f32::INFINITY,
+            1e30,
+        ] {
+            let r = x.round();
+            let want = (0.0..640.0).contains(&r).then_some(r as usize);
+            assert_eq!(pixel(x, 640), want, "{x}");
+        }
+        assert_eq!(pixel(0.0, 0), None);
     }
 
     #[test]

@@ -1,17 +1,19 @@
 //! From marked cells to the cell field that is marched: weak-cell rejection, small-component
-//! removal, floor, and the flood fill that separates the outside from enclosed space.
+//! removal, floor, and the flood fill that separates the outside from enclosed space (over a
+//! dense box of bits, see the `bitbox` module).
 
 use std::collections::HashMap;
 
 use voxoct_core::glam::{IVec3, UVec3};
 use voxoct_core::{Cell, GridSpec};
 
+use crate::bitbox::{BitBox, Flood, remove_small_groups};
 use crate::march::Inside;
 use crate::mesh::Dsu;
 use crate::options::{Floor, MeshError, MeshOptions, Placement};
 use crate::tables::corner_offset;
 
-/// Largest dense box (in cells) the flood fill will allocate, at about 7 bytes per cell.
+/// Largest dense box (in cells) the flood fill will allocate, at under 2 bytes per cell.
 pub const FILL_LIMIT: u64 = 1 << 28;
 
 /// The seven positive Kuhn edge directions (the mesh's connectivity between cells).
@@ -92,9 +94,6 @@ pub(crate) fn prepare(
     if let Some(f) = floor_layer {
         out.retain(|c| c.0.y >= f);
     }
-    if opts.min_component_cells > 1 {
-        remove_small_components(out, opts.min_component_cells, |_| true);
-    }
     let inside = match (opts.solid, opts.placement) {
         (false, _) => Inside::Marked,
         (true, Placement::Midpoint) => Inside::NotExterior,
@@ -104,7 +103,15 @@ pub(crate) fn prepare(
         // Filling and the signed distance can leave specks of inside apart from the body.
         let specks = (opts.solid && opts.min_component_cells > 1)
             .then_some((opts.min_component_cells, inside));
-        fill_enclosed(out, floor_layer, opts.close_gaps, specks)?;
+        fill_enclosed(
+            out,
+            floor_layer,
+            opts.close_gaps,
+            opts.min_component_cells,
+            specks,
+        )?;
+    } else if opts.min_component_cells > 1 {
+        remove_small_components(out, opts.min_component_cells, |_| true);
     }
     Ok(inside)
 }
@@ -146,128 +153,77 @@ fn remove_small_components(
     cells.retain(|_| *k.next().unwrap_or(&true));
 }
 
-/// Dilates the non-zero cells of a dense `nx × ny × nz` box by `k` cells (L∞), in place.
-fn dilate(a: &mut [u8], n: [usize; 3], k: usize) {
-    if k == 0 {
-        return;
-    }
-    let stride = [1, n[0], n[0] * n[1]];
-    let mut line = Vec::new();
-    for axis in 0..3 {
-        let (len, s) = (n[axis], stride[axis]);
-        let others: Vec<usize> = (0..3).filter(|&a| a != axis).collect();
-        for j in 0..n[others[1]] {
-            for i in 0..n[others[0]] {
-                let base = i * stride[others[0]] + j * stride[others[1]];
-                line.clear();
-                line.extend((0..len).map(|t| u32::from(a[base + t * s] != 0)));
-                // Sliding count of set cells in [t - k, t + k].
-                let mut count: u32 = line[..k.min(len)].iter().sum();
-                for t in 0..len {
-                    if t + k < len {
-                        count += line[t + k];
-                    }
-                    if t > k {
-                        count -= line[t - k - 1];
-                    }
-                    a[base + t * s] = u8::from(count > 0);
-                }
-            }
-        }
-    }
-}
-
-/// A dense box of cells: the marked cells' bounding box, padded.
-struct Dense {
-    lo: IVec3,
-    n: [usize; 3],
-}
-
-impl Dense {
-    fn len(&self) -> usize {
-        self.n[0] * self.n[1] * self.n[2]
-    }
-
-    #[inline]
-    fn index(&self, p: IVec3) -> usize {
-        let q = (p - self.lo).as_uvec3();
-        (q.z as usize * self.n[1] + q.y as usize) * self.n[0] + q.x as usize
-    }
-
-    /// Index offsets of the 14 Kuhn neighbours.
-    fn offsets(&self) -> [isize; 14] {
-        let (sy, sz) = (self.n[0] as isize, (self.n[0] * self.n[1]) as isize);
-        let mut out = [0isize; 14];
-        for (k, d) in kuhn_dirs().iter().enumerate() {
-            let o = d.x as isize + d.y as isize * sy + d.z as isize * sz;
-            out[2 * k] = o;
-            out[2 * k + 1] = -o;
-        }
-        out
-    }
-
-    /// Whether cell `i` lies on the box's outer layer (the sentinel border).
-    #[inline]
-    fn on_border(&self, i: usize) -> bool {
-        let [nx, ny, nz] = self.n;
-        let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
-        x == 0 || y == 0 || z == 0 || x == nx - 1 || y == ny - 1 || z == nz - 1
-    }
-}
-
-/// Marks (1) every unmarked cell that the outside cannot reach.
+/// Marks every unmarked cell of the box that the outside cannot reach.
 ///
 /// The outside is flooded through unmarked cells along the mesh's own connectivity (the 14
 /// Kuhn neighbours) from the boundary of the padded box (equivalent to the grid boundary:
 /// everything beyond is unmarked), never from below the floor (the box's bottom layer when
-/// `closed_bottom`). With `gap > 0`, the flood may not pass within `gap` cells (L∞) of a
-/// marked cell, and what it reached is grown back by `gap` afterwards: holes in the shell up
-/// to `2 · gap` cells wide no longer let the outside in.
-fn enclosed(dense: &Dense, marked: &[u8], closed_bottom: bool, gap: u32) -> Vec<u8> {
-    let [nx, ny, nz] = dense.n;
-    // 1 = blocked (marked or within `gap` of it), 2 = reached by the outside, 3 = the
-    // sentinel border (never entered, so neighbours need no bounds checks).
-    let mut state = marked.to_vec();
-    dilate(&mut state, dense.n, gap as usize);
-    const OUT: u8 = 2;
-    const WALL: u8 = 3;
-    let mut stack: Vec<u32> = Vec::new();
-    for z in 0..nz {
-        for y in 0..ny {
-            for x in 0..nx {
-                let i = (z * ny + y) * nx + x;
-                if x == 0 || y == 0 || z == 0 || x == nx - 1 || y == ny - 1 || z == nz - 1 {
-                    state[i] = WALL;
-                    continue;
-                }
-                let on_side = x == 1 || x == nx - 2 || z == 1 || z == nz - 2 || y == ny - 2;
-                let on_bottom = y == 1 && !closed_bottom;
-                if (on_side || on_bottom) && state[i] == 0 {
-                    state[i] = OUT;
-                    stack.push(i as u32);
-                }
+/// `closed_bottom`). The box's outer layer is a sentinel border, never entered. With
+/// `gap > 0`, the flood may not pass within `gap` cells (L∞) of a marked cell, and what it
+/// reached (with the border) is grown back by `gap` afterwards: holes in the shell up to
+/// `2 · gap` cells wide no longer let the outside in.
+fn enclosed(marked: &BitBox, closed_bottom: bool, gap: u32) -> BitBox {
+    let [nx, ny, nz] = marked.n;
+    let w = marked.w;
+    let interior_row = |r: usize| {
+        let (y, z) = (r % ny, r / ny);
+        y > 0 && z > 0 && y < ny - 1 && z < nz - 1
+    };
+    // Valid bits of each word minus the border columns x = 0 and x = nx - 1.
+    let inner: Vec<u64> = (0..w)
+        .map(|i| {
+            let mut m = marked.word_mask(i);
+            if i == 0 {
+                m &= !1;
             }
+            if i == (nx - 1) / 64 {
+                m &= !(1u64 << ((nx - 1) % 64));
+            }
+            m
+        })
+        .collect();
+    let mut free = marked.clone();
+    free.dilate(gap as usize);
+    for r in 0..free.rows() {
+        let keep = interior_row(r);
+        for (b, &m) in free.row_mut(r).iter_mut().zip(&inner) {
+            *b = if keep { !*b & m } else { 0 };
         }
     }
-    let offsets = dense.offsets();
-    while let Some(i) = stack.pop() {
-        for o in offsets {
-            let j = (i as isize + o) as usize;
-            if state[j] == 0 {
-                state[j] = OUT;
-                stack.push(j as u32);
-            }
+    let mut reached = BitBox::new(marked.n);
+    let mut flood = Flood::new(&free);
+    let mut seed = vec![0u64; w];
+    let mut sides = vec![0u64; w];
+    sides[0] |= 1 << 1;
+    sides[(nx - 2) / 64] |= 1 << ((nx - 2) % 64);
+    for r in 0..free.rows() {
+        if !interior_row(r) {
+            continue;
+        }
+        let (y, z) = (r % ny, r / ny);
+        let whole = z == 1 || z == nz - 2 || y == ny - 2 || (y == 1 && !closed_bottom);
+        if whole {
+            seed.copy_from_slice(free.row(r));
+        } else {
+            seed.copy_from_slice(&sides);
+        }
+        flood.seed(&free, &mut reached, r, &seed, &mut |_, _, _| {});
+    }
+    flood.run(&free, &mut reached, &mut |_, _, _| {});
+    // Outside = reached or border, grown back; enclosed = neither outside nor marked.
+    let mut outside = reached;
+    for r in 0..outside.rows() {
+        let keep = interior_row(r);
+        for (i, b) in outside.row_mut(r).iter_mut().enumerate() {
+            let m = marked.word_mask(i);
+            *b = if keep { *b | (m & !inner[i]) } else { m };
         }
     }
-    // Outside = reached, grown back by `gap`; enclosed = neither outside, marked nor border.
-    for s in &mut state {
-        *s = u8::from(*s == OUT || *s == WALL);
+    outside.dilate(gap as usize);
+    for (i, (o, &m)) in outside.bits.iter_mut().zip(&marked.bits).enumerate() {
+        *o = !*o & !m & marked.word_mask(i % w);
     }
-    dilate(&mut state, dense.n, gap as usize);
-    for (s, &m) in state.iter_mut().zip(marked) {
-        *s = u8::from(*s == 0 && m == 0);
-    }
-    state
+    outside
 }
 
 /// Adds the enclosed cells as `-inf` (see [`enclosed`]), closing gaps only as far as needed:
@@ -275,12 +231,14 @@ fn enclosed(dense: &Dense, marked: &[u8], closed_bottom: bool, gap: u32) -> Vec<
 /// is at least half of that is used. A shell that is already closed keeps its concavities (no
 /// fill in the wedge at the floor); one that leaks gets its gaps closed.
 ///
-/// With `specks = Some((min, inside))`, connected groups of inside cells smaller than `min`
-/// are then dropped. The cells come out in z, y, x order.
+/// Connected groups of marked cells smaller than `min_component` are dropped first. With
+/// `specks = Some((min, inside))`, connected groups of inside cells smaller than `min` are
+/// dropped at the end. The cells come out in z, y, x order.
 fn fill_enclosed(
     cells: &mut Vec<(UVec3, f32)>,
     floor: Option<u32>,
     max_gap: u32,
+    min_component: usize,
     specks: Option<(usize, Inside)>,
 ) -> Result<(), MeshError> {
     let mut lo = IVec3::splat(i32::MAX);
@@ -304,75 +262,91 @@ fn fill_enclosed(
             limit: FILL_LIMIT,
         });
     }
-    let dense = Dense {
-        lo,
-        n: [dim.x as usize, dim.y as usize, dim.z as usize],
+    let n = [dim.x as usize, dim.y as usize, dim.z as usize];
+    let mut marked = BitBox::new(n);
+    let w = marked.w;
+    let place = |c: UVec3| {
+        let q = (c.as_ivec3() - lo).as_uvec3();
+        (q.x as usize, q.z as usize * n[1] + q.y as usize)
     };
-    let mut val = vec![f32::INFINITY; dense.len()];
-    let mut marked = vec![0u8; dense.len()];
     for c in cells.iter() {
-        let i = dense.index(c.0.as_ivec3());
-        marked[i] = 1;
-        val[i] = c.1;
+        let (x, r) = place(c.0);
+        marked.set(x, r);
     }
-    let count = |m: &[u8]| m.iter().filter(|&&v| v != 0).count();
-    let mut chosen = enclosed(&dense, &marked, floor.is_some(), max_gap);
-    let widest = count(&chosen);
+    // The values, in box order: cell k of `all` (the marked cells) has `vals[rank(k)]`.
+    let all = marked.bits.clone();
+    let mut rank = Vec::with_capacity(all.len());
+    let mut acc = 0u32;
+    for b in &all {
+        rank.push(acc);
+        acc += b.count_ones();
+    }
+    let index = |x: usize, r: usize| {
+        let k = r * w + x / 64;
+        rank[k] as usize + (all[k] & ((1u64 << (x % 64)) - 1)).count_ones() as usize
+    };
+    let mut vals = vec![0.0f32; acc as usize];
+    for c in cells.iter() {
+        let (x, r) = place(c.0);
+        vals[index(x, r)] = c.1;
+    }
+    remove_small_groups(&mut marked, min_component);
+
+    let mut chosen = enclosed(&marked, floor.is_some(), max_gap);
+    let widest = chosen.count();
     for gap in 0..max_gap {
-        let v = enclosed(&dense, &marked, floor.is_some(), gap);
-        if 2 * count(&v) >= widest {
+        let v = enclosed(&marked, floor.is_some(), gap);
+        if 2 * v.count() >= widest {
             chosen = v;
             break;
         }
     }
-    for (v, &e) in val.iter_mut().zip(&chosen) {
-        if e != 0 {
-            *v = f32::NEG_INFINITY;
-        }
+    // Kept cells: marked or enclosed, minus the specks.
+    let mut keep = marked.clone();
+    for (k, e) in keep.bits.iter_mut().zip(&chosen.bits) {
+        *k |= e;
     }
     if let Some((min, inside)) = specks {
-        // Reuse `chosen` as the visited flags.
-        let visited = &mut chosen;
-        visited.fill(0);
-        let offsets = dense.offsets();
-        let mut stack = Vec::new();
-        let mut group = Vec::new();
-        for start in 0..val.len() {
-            if visited[start] != 0 || !inside.test(val[start]) {
-                continue;
-            }
-            visited[start] = 1;
-            stack.push(start);
-            group.clear();
-            while let Some(i) = stack.pop() {
-                group.push(i);
-                debug_assert!(!dense.on_border(i));
-                for o in offsets {
-                    let j = (i as isize + o) as usize;
-                    if visited[j] == 0 && inside.test(val[j]) {
-                        visited[j] = 1;
-                        stack.push(j);
-                    }
+        let enclosed_in = inside.test(f32::NEG_INFINITY);
+        let mut ins = BitBox::new(n);
+        for (k, o) in ins.bits.iter_mut().enumerate() {
+            let (m, e) = (marked.bits[k], chosen.bits[k]);
+            let mut bits = if enclosed_in { e } else { 0 };
+            let mut rest = m;
+            while rest != 0 {
+                let b = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                if inside.test(vals[index(64 * (k % w) + b, k / w)]) {
+                    bits |= 1 << b;
                 }
             }
-            if group.len() < min {
-                for &i in &group {
-                    val[i] = f32::INFINITY;
-                }
-            }
+            *o = bits;
+        }
+        let before = ins.clone();
+        remove_small_groups(&mut ins, min);
+        for ((k, b), a) in keep.bits.iter_mut().zip(&before.bits).zip(&ins.bits) {
+            *k &= !(b & !a);
         }
     }
     cells.clear();
-    let [nx, ny, _] = dense.n;
-    for (i, &v) in val.iter().enumerate() {
-        if v != f32::INFINITY {
-            let p = lo
-                + IVec3::new(
-                    (i % nx) as i32,
-                    ((i / nx) % ny) as i32,
-                    (i / (nx * ny)) as i32,
-                );
-            cells.push((p.as_uvec3(), v));
+    cells.reserve_exact(keep.count());
+    for r in 0..keep.rows() {
+        let (y, z) = (r % n[1], r / n[1]);
+        for i in 0..w {
+            let mut bits = keep.bits[r * w + i];
+            let m = marked.bits[r * w + i];
+            while bits != 0 {
+                let b = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let x = 64 * i + b;
+                let v = if m >> b & 1 == 1 {
+                    vals[index(x, r)]
+                } else {
+                    f32::NEG_INFINITY
+                };
+                let p = lo + IVec3::new(x as i32, y as i32, z as i32);
+                cells.push((p.as_uvec3(), v));
+            }
         }
     }
     Ok(())

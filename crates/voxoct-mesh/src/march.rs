@@ -318,7 +318,9 @@ pub(crate) fn march(
     let table = &*CASES;
     let triangles = &mut out.triangles;
     triangles.clear();
-    triangles.reserve(count as usize * 2);
+    // A closed piece of genus g has 2 (V - 2 + 2g) triangles: twice the vertices, plus slack
+    // for handles, so that the buffer need not double.
+    triangles.reserve(count as usize * 2 + count as usize / 32 + 64);
     for (b, p) in padded.iter().enumerate() {
         // Row bases of the eight bricks this brick's cubes reach into.
         let nb_base = bricks.nb[b].map(|bb| (bb as usize).wrapping_mul(ROWS));

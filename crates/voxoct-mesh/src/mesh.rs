@@ -3,6 +3,8 @@
 use voxoct_core::Aabb;
 use voxoct_core::glam::Vec3;
 
+use crate::par;
+
 /// An indexed triangle mesh: triangles are counter-clockwise seen from outside.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Mesh {
@@ -164,36 +166,19 @@ impl Mesh {
             return 0.0;
         };
         let o = o.as_dvec3();
-        self.triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| self.vertices[i as usize].as_dvec3() - o);
-                a.dot(b.cross(c))
-            })
-            .sum::<f64>()
-            / 6.0
+        par::sum(&self.triangles, |t| {
+            let [a, b, c] = t.map(|i| self.vertices[i as usize].as_dvec3() - o);
+            a.dot(b.cross(c))
+        }) / 6.0
     }
 
     /// Total surface area, square metres.
     #[must_use]
     pub fn area(&self) -> f64 {
-        self.triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| self.vertices[i as usize].as_dvec3());
-                0.5 * (b - a).cross(c - a).length()
-            })
-            .sum()
-    }
-
-    /// Component label (smallest vertex index of the component) of every vertex.
-    pub(crate) fn vertex_components(&self) -> Dsu {
-        let mut dsu = Dsu::new(self.vertices.len());
-        for t in &self.triangles {
-            dsu.union(t[0], t[1]);
-            dsu.union(t[0], t[2]);
-        }
-        dsu
+        par::sum(&self.triangles, |t| {
+            let [a, b, c] = t.map(|i| self.vertices[i as usize].as_dvec3());
+            0.5 * (b - a).cross(c - a).length()
+        })
     }
 
     /// Triangle and vertex counts, volume, area, bounds, components.
@@ -206,11 +191,11 @@ impl Mesh {
                 .fold((p0, p0), |(lo, hi), &p| (lo.min(p), hi.max(p)));
             Aabb::new(lo, hi)
         });
-        let mut dsu = self.vertex_components();
-        let mut roots: Vec<u32> = self.triangles.iter().map(|t| dsu.find(t[0])).collect();
-        roots.sort_unstable();
-        roots.dedup();
-        let components = roots.len();
+        let mut seen = vec![false; self.vertices.len()];
+        let mut components = 0;
+        for r in par::triangle_roots(self.vertices.len(), &self.triangles) {
+            components += usize::from(!std::mem::replace(&mut seen[r as usize], true));
+        }
         MeshStats {
             triangles: self.triangles.len(),
             vertices: self.vertices.len(),
@@ -234,43 +219,112 @@ impl Mesh {
         if self.triangles.is_empty() {
             return Err(TopologyError::Empty);
         }
-        for (i, p) in self.vertices.iter().enumerate() {
-            if !p.is_finite() {
-                return Err(TopologyError::NonFiniteVertex { vertex: i as u32 });
-            }
+        if let Some(i) = par::position_first(&self.vertices, |p| !p.is_finite()) {
+            return Err(TopologyError::NonFiniteVertex { vertex: i as u32 });
         }
-        let mut used = vec![0u32; nv + 1];
-        for (i, t) in self.triangles.iter().enumerate() {
-            for &k in t {
-                if k as usize >= nv {
-                    return Err(TopologyError::IndexOutOfRange {
-                        triangle: i,
-                        index: k,
-                    });
-                }
-                used[k as usize] += 1;
+        let bad_triangle = |t: &[u32; 3]| {
+            t.iter().any(|&k| k as usize >= nv)
+                || t[0] == t[1]
+                || t[1] == t[2]
+                || t[0] == t[2]
+                || triangle_area(&self.vertices, *t).1
+        };
+        if let Some(i) = par::position_first(&self.triangles, bad_triangle) {
+            let t = self.triangles[i];
+            if let Some(&k) = t.iter().find(|&&k| k as usize >= nv) {
+                return Err(TopologyError::IndexOutOfRange {
+                    triangle: i,
+                    index: k,
+                });
             }
             if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
                 return Err(TopologyError::RepeatedIndex { triangle: i });
             }
-            let (area, degenerate) = triangle_area(&self.vertices, *t);
-            if degenerate {
-                return Err(TopologyError::Degenerate { triangle: i, area });
+            let (area, _) = triangle_area(&self.vertices, t);
+            return Err(TopologyError::Degenerate { triangle: i, area });
+        }
+        // Fans: around v every triangle (v, a, b) gives a link edge a -> b, in CSR.
+        let mut start = vec![0u32; nv + 1];
+        for t in &self.triangles {
+            for &k in t {
+                start[k as usize + 1] += 1;
             }
         }
-        if let Some(v) = used[..nv].iter().position(|&c| c == 0) {
+        if let Some(v) = start[1..].iter().position(|&c| c == 0) {
             return Err(TopologyError::UnusedVertex { vertex: v as u32 });
         }
-        // Distinct positions (+0.0 and -0.0 are the same point).
-        let mut order: Vec<u32> = (0..nv as u32).collect();
-        let key = |p: Vec3| p.to_array().map(|x| if x == 0.0 { 0 } else { x.to_bits() });
-        order.sort_unstable_by_key(|&i| key(self.vertices[i as usize]));
-        for w in order.windows(2) {
-            if key(self.vertices[w[0] as usize]) == key(self.vertices[w[1] as usize]) {
-                return Err(TopologyError::DuplicatePosition { a: w[0], b: w[1] });
+        for i in 0..nv {
+            start[i + 1] += start[i];
+        }
+        let mut link = vec![(0u32, 0u32); 3 * self.triangles.len()];
+        for t in &self.triangles {
+            for k in 0..3 {
+                let v = t[k] as usize;
+                link[start[v] as usize] = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                start[v] += 1;
             }
         }
-        // Directed edges, each with its triangle.
+        // `start[v]` is now the end of v's fan: shift back.
+        for i in (1..=nv).rev() {
+            start[i] = start[i - 1];
+        }
+        start[0] = 0;
+        // Distinct positions (+0.0 and -0.0 are the same point).
+        let key = |p: Vec3| p.to_array().map(|x| if x == 0.0 { 0 } else { x.to_bits() });
+        let mut order: Vec<([u32; 3], u32)> = self
+            .vertices
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| (key(p), i as u32))
+            .collect();
+        par::sort(&mut order);
+        for w in order.windows(2) {
+            if w[0].0 == w[1].0 {
+                return Err(TopologyError::DuplicatePosition {
+                    a: w[0].1,
+                    b: w[1].1,
+                });
+            }
+        }
+        drop(order);
+        // Every directed edge v -> a is a link start `a` of v; it is unique when the starts
+        // are, and its opposite a -> v exists when `a` is also a link end. With both, each
+        // link vertex has one successor and one predecessor, so the link is a set of
+        // cycles, and it must be exactly one.
+        let fan = |v: usize| &link[start[v] as usize..start[v + 1] as usize];
+        let vertex_ok = |v: usize| {
+            let f = fan(v);
+            for (i, e) in f.iter().enumerate() {
+                if f[i + 1..].iter().any(|x| x.0 == e.0) || !f.iter().any(|x| x.1 == e.0) {
+                    return false;
+                }
+            }
+            fan_steps(f) == f.len()
+        };
+        if !par::all(nv, vertex_ok) {
+            // Name the first problem in the order: repeated edge, open edge, fan.
+            self.check_edges()?;
+            for v in 0..nv {
+                let f = fan(v);
+                if fan_steps(f) != f.len() {
+                    return Err(TopologyError::NonManifoldVertex {
+                        vertex: v as u32,
+                        triangles: f.len(),
+                        fans: count_cycles(f),
+                    });
+                }
+            }
+        }
+        let volume = self.volume();
+        if volume.is_nan() || volume <= 0.0 {
+            return Err(TopologyError::NonPositiveVolume { volume });
+        }
+        Ok(())
+    }
+
+    /// The edge part of [`Self::check_closed_manifold`], by sorting all directed edges:
+    /// slower, used only to name the first bad edge.
+    fn check_edges(&self) -> Result<(), TopologyError> {
         let mut edges: Vec<(u64, u32)> = Vec::with_capacity(3 * self.triangles.len());
         for (i, t) in self.triangles.iter().enumerate() {
             for k in 0..3 {
@@ -297,51 +351,6 @@ impl Mesh {
                     triangle: tri as usize,
                 });
             }
-        }
-        // Fans: around v every triangle (v, a, b) gives a link edge a -> b; with the edge
-        // checks above, each link vertex has one successor and one predecessor, so the link
-        // is a set of cycles, and it must be exactly one.
-        let mut start = vec![0u32; nv + 1];
-        for t in &self.triangles {
-            for &k in t {
-                start[k as usize + 1] += 1;
-            }
-        }
-        for i in 0..nv {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut link = vec![(0u32, 0u32); 3 * self.triangles.len()];
-        for t in &self.triangles {
-            for k in 0..3 {
-                let v = t[k] as usize;
-                link[fill[v] as usize] = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                fill[v] += 1;
-            }
-        }
-        for v in 0..nv {
-            let fan = &link[start[v] as usize..start[v + 1] as usize];
-            let first = fan[0].0;
-            let mut cur = first;
-            let mut steps = 0;
-            while let Some(&(_, next)) = fan.iter().find(|e| e.0 == cur) {
-                steps += 1;
-                cur = next;
-                if cur == first || steps > fan.len() {
-                    break;
-                }
-            }
-            if steps != fan.len() {
-                return Err(TopologyError::NonManifoldVertex {
-                    vertex: v as u32,
-                    triangles: fan.len(),
-                    fans: count_cycles(fan),
-                });
-            }
-        }
-        let volume = self.volume();
-        if volume.is_nan() || volume <= 0.0 {
-            return Err(TopologyError::NonPositiveVolume { volume });
         }
         Ok(())
     }
@@ -376,8 +385,7 @@ impl Mesh {
 
     /// For each triangle its piece's root vertex, and for each root the piece's triangles.
     fn triangle_components(&self) -> (Vec<u32>, Vec<usize>) {
-        let mut dsu = self.vertex_components();
-        let roots: Vec<u32> = self.triangles.iter().map(|t| dsu.find(t[0])).collect();
+        let roots = par::triangle_roots(self.vertices.len(), &self.triangles);
         let mut size = vec![0usize; self.vertices.len()];
         for &r in &roots {
             size[r as usize] += 1;
@@ -420,6 +428,21 @@ impl Mesh {
             })
             .collect()
     }
+}
+
+/// Steps of the walk around a link from its first edge until it closes (or gives up).
+fn fan_steps(fan: &[(u32, u32)]) -> usize {
+    let first = fan[0].0;
+    let mut cur = first;
+    let mut steps = 0;
+    while let Some(&(_, next)) = fan.iter().find(|e| e.0 == cur) {
+        steps += 1;
+        cur = next;
+        if cur == first || steps > fan.len() {
+            break;
+        }
+    }
+    steps
 }
 
 /// Number of cycles of a link given as successor pairs (each `a` at most once).

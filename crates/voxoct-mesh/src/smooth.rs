@@ -1,9 +1,10 @@
 //! Taubin λ/μ smoothing: positions only, connectivity untouched.
 
-use voxoct_core::glam::Vec3;
+use voxoct_core::glam::{Vec3, Vec3A};
 
 use crate::mesh::{Mesh, triangle_area};
 use crate::options::Taubin;
+use crate::par;
 
 /// Vertex neighbours (each undirected mesh edge once per end), CSR.
 fn neighbours(mesh: &Mesh) -> (Vec<u32>, Vec<u32>) {
@@ -32,38 +33,39 @@ fn neighbours(mesh: &Mesh) -> (Vec<u32>, Vec<u32>) {
     (start, adj)
 }
 
-fn step(src: &[Vec3], dst: &mut [Vec3], start: &[u32], adj: &[u32], f: f32) {
-    for (v, out) in dst.iter_mut().enumerate() {
+fn step(src: &[Vec3A], dst: &mut [Vec3A], start: &[u32], adj: &[u32], f: f32) {
+    par::fill(dst, |v| {
         let nb = &adj[start[v] as usize..start[v + 1] as usize];
         let p = src[v];
         if nb.is_empty() {
-            *out = p;
-            continue;
+            return p;
         }
-        let mean = nb.iter().map(|&j| src[j as usize]).sum::<Vec3>() / nb.len() as f32;
-        *out = p + f * (mean - p);
-    }
+        let mean = nb.iter().map(|&j| src[j as usize]).sum::<Vec3A>() / nb.len() as f32;
+        p + f * (mean - p)
+    });
 }
 
 fn any_degenerate(mesh: &Mesh, v: &[Vec3]) -> bool {
-    mesh.triangles.iter().any(|&t| triangle_area(v, t).1)
+    par::any(&mesh.triangles, |&t| triangle_area(v, t).1)
 }
 
 fn has_duplicates(v: &[Vec3]) -> bool {
     let key = |p: &Vec3| p.to_array().map(|x| if x == 0.0 { 0 } else { x.to_bits() });
     let mut k: Vec<[u32; 3]> = v.iter().map(key).collect();
-    k.sort_unstable();
+    par::sort(&mut k);
     k.windows(2).any(|w| w[0] == w[1])
 }
 
 fn run(mesh: &Mesh, start: &[u32], adj: &[u32], opts: &Taubin, iterations: u32) -> Vec<Vec3> {
-    let mut cur = mesh.vertices.clone();
+    // SIMD lanes; the arithmetic is per lane, so the result is that of `Vec3` bit for bit.
+    let mut cur: Vec<Vec3A> = mesh.vertices.iter().map(|&p| p.into()).collect();
     let mut tmp = cur.clone();
     for _ in 0..iterations {
         step(&cur, &mut tmp, start, adj, opts.lambda);
         step(&tmp, &mut cur, start, adj, opts.mu);
     }
-    cur
+    drop(tmp);
+    cur.into_iter().map(Vec3::from).collect()
 }
 
 /// Smooths `mesh` in place. If the result had a degenerate triangle or two coinciding

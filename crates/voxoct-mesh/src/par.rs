@@ -1,0 +1,159 @@
+//! Data-parallel helpers: rayon with the `parallel` feature, plain loops without it. Every
+//! helper gives the same result either way.
+
+#[cfg(feature = "parallel")]
+use rayon::prelude::*;
+
+/// Index of the first item for which `f` holds.
+pub(crate) fn position_first<T: Sync>(items: &[T], f: impl Fn(&T) -> bool + Sync) -> Option<usize> {
+    #[cfg(feature = "parallel")]
+    {
+        items.par_iter().position_first(&f)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        items.iter().position(f)
+    }
+}
+
+/// Whether `f(i)` holds for every `i` in `0..n`.
+pub(crate) fn all(n: usize, f: impl Fn(usize) -> bool + Sync) -> bool {
+    #[cfg(feature = "parallel")]
+    {
+        (0..n).into_par_iter().with_min_len(1024).all(&f)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        (0..n).all(&f)
+    }
+}
+
+/// Sorts (unstable; the items must be totally ordered with no equal distinct items).
+pub(crate) fn sort<T: Ord + Send>(items: &mut [T]) {
+    #[cfg(feature = "parallel")]
+    items.par_sort_unstable();
+    #[cfg(not(feature = "parallel"))]
+    items.sort_unstable();
+}
+
+/// Items per chunk of [`sum`]: fixed, so that the rounding does not depend on threads.
+const CHUNK: usize = 1 << 14;
+
+/// `Σ f(item)`, summed in fixed chunks (in order), then the chunk sums in order.
+pub(crate) fn sum<T: Sync>(items: &[T], f: impl Fn(&T) -> f64 + Sync) -> f64 {
+    let chunk = |c: &[T]| c.iter().map(&f).sum::<f64>();
+    #[cfg(feature = "parallel")]
+    let parts: Vec<f64> = items.par_chunks(CHUNK).map(chunk).collect();
+    #[cfg(not(feature = "parallel"))]
+    let parts: Vec<f64> = items.chunks(CHUNK).map(chunk).collect();
+    parts.iter().sum()
+}
+
+/// `dst[i] = f(i)` for every `i`.
+pub(crate) fn fill<T: Send>(dst: &mut [T], f: impl Fn(usize) -> T + Sync) {
+    #[cfg(feature = "parallel")]
+    dst.par_iter_mut()
+        .with_min_len(1024)
+        .enumerate()
+        .for_each(|(i, d)| *d = f(i));
+    #[cfg(not(feature = "parallel"))]
+    for (i, d) in dst.iter_mut().enumerate() {
+        *d = f(i);
+    }
+}
+
+/// Whether `f` holds for any item.
+pub(crate) fn any<T: Sync>(items: &[T], f: impl Fn(&T) -> bool + Sync) -> bool {
+    #[cfg(feature = "parallel")]
+    {
+        items.par_iter().any(&f)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        items.iter().any(f)
+    }
+}
+
+/// For every triangle, the smallest vertex index of its edge-connected piece (`n`
+/// vertices). In parallel, a lock-free union-find that always links the larger root under
+/// the smaller: every piece ends with its smallest vertex as root, whatever the schedule.
+pub(crate) fn triangle_roots(n: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+    #[cfg(feature = "parallel")]
+    {
+        use std::sync::atomic::{AtomicU32, Ordering};
+        let parent: Vec<AtomicU32> = (0..n as u32).map(AtomicU32::new).collect();
+        // Every pointer goes to a smaller index, and a root's only ever changes once (when
+        // it is linked), so any pointer stored is to an ancestor: no cycle can form.
+        let find = |mut x: u32| loop {
+            let p = parent[x as usize].load(Ordering::Acquire);
+            if p == x {
+                return x;
+            }
+            let g = parent[p as usize].load(Ordering::Acquire);
+            if g != p {
+                parent[x as usize].store(g, Ordering::Release);
+            }
+            x = g;
+        };
+        let union = |a: u32, b: u32| {
+            let (mut a, mut b) = (a, b);
+            loop {
+                a = find(a);
+                b = find(b);
+                if a == b {
+                    return;
+                }
+                let (hi, lo) = (a.max(b), a.min(b));
+                if parent[hi as usize]
+                    .compare_exchange(hi, lo, Ordering::AcqRel, Ordering::Acquire)
+                    .is_ok()
+                {
+                    return;
+                }
+            }
+        };
+        triangles.par_chunks(1 << 12).for_each(|c| {
+            for t in c {
+                union(t[0], t[1]);
+                union(t[0], t[2]);
+            }
+        });
+        triangles
+            .par_iter()
+            .with_min_len(1 << 12)
+            .map(|t| find(t[0]))
+            .collect()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        let mut dsu = crate::mesh::Dsu::new(n);
+        for t in triangles {
+            dsu.union(t[0], t[1]);
+            dsu.union(t[0], t[2]);
+        }
+        triangles.iter().map(|t| dsu.find(t[0])).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Dsu;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The roots are those of a plain union-find, whatever the thread schedule.
+        #[test]
+        fn triangle_roots_are_the_smallest_vertex_of_each_piece(
+            tris in proptest::collection::vec([0u32..3000, 0u32..3000, 0u32..3000], 0..12000)
+        ) {
+            let mut dsu = Dsu::new(3000);
+            for t in &tris {
+                dsu.union(t[0], t[1]);
+                dsu.union(t[0], t[2]);
+            }
+            let want: Vec<u32> = tris.iter().map(|t| dsu.find(t[0])).collect();
+            prop_assert_eq!(triangle_roots(3000, &tris), want);
+        }
+    }
+}
