@@ -1,9 +1,9 @@
 //! Where the frames come from: a simulated or live capture, a recorded scan, a fakenect recording.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
-use voxoct::depth::{RecordedScan, ScanManifest, ScannerConfig, SnapshotEntry};
+use voxoct::depth::{RecordedScan, ScanWriter, ScannerConfig};
 use voxoct::kinect::{DepthSource, FakenectSource, Model, SimConfig, SimulatedKinect};
 use voxoct::pipeline::SnapshotFrames;
 use voxoct::turntable::{SimulatedTurntable, Turntable};
@@ -34,23 +34,15 @@ pub struct Acquired {
     pub snapshots: Vec<SnapshotFrames>,
 }
 
-/// Writes what was acquired as a recorded-scan directory.
+/// Writes what was acquired as a recorded-scan directory (frames as 16-bit PNG, then
+/// `scan.toml`, rewritten atomically after each snapshot).
 pub fn record(acquired: &Acquired, dir: &Path) -> Result<(), String> {
-    {
-        let mut manifest = ScanManifest::new(acquired.settings.config);
-        let mut frames = Vec::with_capacity(acquired.snapshots.len());
-        for (k, s) in acquired.snapshots.iter().enumerate() {
-            manifest.snapshots.push(SnapshotEntry {
-                angle_deg: s.angle_deg,
-                frames: (0..s.frames.len())
-                    .map(|j| PathBuf::from(format!("frames/s{k:03}_f{j:02}.png")))
-                    .collect(),
-            });
-            frames.push(s.frames.clone());
-        }
-        RecordedScan::write(dir, &manifest, &frames)
-            .map_err(|e| format!("--record-to {}: {e}", dir.display()))
+    let err = |e: voxoct::depth::DepthError| format!("--record-to {}: {e}", dir.display());
+    let mut writer = ScanWriter::create(dir, acquired.settings.config).map_err(err)?;
+    for s in &acquired.snapshots {
+        writer.add_snapshot(s.angle_deg, &s.frames).map_err(err)?;
     }
+    writer.finish().map(drop).map_err(err)
 }
 
 /// Reads the `--config` file, if any.
