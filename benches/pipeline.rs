@@ -10,21 +10,13 @@ use std::path::Path;
 use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
 use voxoct::depth::{RecordedScan, ScannerConfig};
 use voxoct::kinect::{SimConfig, SimulatedKinect};
-use voxoct::pipeline::{Params, SnapshotFrames, reconstruct, simulate_scan};
+use voxoct::pipeline::{Params, SnapshotFrames, reconstruct, recorded_snapshots, simulate_scan};
 
 fn load() -> (String, ScannerConfig, Vec<SnapshotFrames>) {
     let bunny = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bunny-scan");
     if let Ok(scan) = RecordedScan::open(&bunny) {
-        let snapshots = scan
-            .frames
-            .into_iter()
-            .zip(&scan.manifest.snapshots)
-            .map(|(frames, e)| SnapshotFrames {
-                angle_deg: e.angle_deg,
-                frames,
-            })
-            .collect();
-        return ("bunny".into(), scan.manifest.config(), snapshots);
+        let (config, snapshots) = recorded_snapshots(scan);
+        return ("bunny".into(), config, snapshots);
     }
     let mut kinect = SimulatedKinect::builtin("figurine", SimConfig::default()).expect("figurine");
     let (config, snapshots) = simulate_scan(&mut kinect, 8, 10).expect("simulated scan");

@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 use voxoct_core::glam::Vec3;
 use voxoct_core::{Octree, OctreeError, Triangle};
 use voxoct_depth::{
-    DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain, ScannerConfig, SensorConfig,
-    Snapshot, kinect_v1_sigma, triangulate,
+    DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain, RecordedScan, ScannerConfig,
+    SensorConfig, Snapshot, kinect_v1_sigma, triangulate,
 };
 use voxoct_kinect::{DepthSource, SimulatedKinect, SourceError};
 use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions};
@@ -292,6 +292,22 @@ pub fn reconstruct(
         triangles_in,
         timings,
     })
+}
+
+/// The snapshots of a recorded scan, ready for [`reconstruct`], with its scanner settings.
+#[must_use]
+pub fn recorded_snapshots(scan: RecordedScan) -> (ScannerConfig, Vec<SnapshotFrames>) {
+    let config = scan.manifest.config();
+    let snapshots = scan
+        .frames
+        .into_iter()
+        .zip(&scan.manifest.snapshots)
+        .map(|(frames, entry)| SnapshotFrames {
+            angle_deg: entry.angle_deg,
+            frames,
+        })
+        .collect();
+    (config, snapshots)
 }
 
 /// Captures a simulated scan: `snapshots` equal turntable steps over a full turn, starting at

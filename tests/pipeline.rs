@@ -8,7 +8,9 @@ use voxoct::core::glam::Vec3;
 use voxoct::depth::{RecordedScan, ScanManifest, ScannerConfig, SnapshotEntry};
 use voxoct::kinect::{Model, SimConfig, SimulatedKinect};
 use voxoct::mesh::{Mesh, MeshOptions};
-use voxoct::pipeline::{Params, Reconstruction, SnapshotFrames, reconstruct, simulate_scan};
+use voxoct::pipeline::{
+    Params, Reconstruction, SnapshotFrames, reconstruct, recorded_snapshots, simulate_scan,
+};
 
 /// A simulated scan: `n` snapshots of `frames` frames of a built-in model.
 fn simulate(model: &str, n: u32, frames: u32, exact: bool) -> (ScannerConfig, Vec<SnapshotFrames>) {
@@ -228,17 +230,10 @@ fn a_recorded_scan_reconstructs_exactly_like_the_capture() {
     RecordedScan::write(dir.path(), &manifest, &frames).unwrap();
     let scan = RecordedScan::open(dir.path()).unwrap();
     assert_eq!(scan.manifest, manifest);
-    let read: Vec<SnapshotFrames> = scan
-        .frames
-        .into_iter()
-        .zip(&scan.manifest.snapshots)
-        .map(|(frames, e)| SnapshotFrames {
-            angle_deg: e.angle_deg,
-            frames,
-        })
-        .collect();
+    let (read_config, read) = recorded_snapshots(scan);
+    assert_eq!(read, snapshots);
     let a = run(&config, snapshots, 0.002, MeshOptions::smooth());
-    let b = run(&scan.manifest.config(), read, 0.002, MeshOptions::smooth());
+    let b = run(&read_config, read, 0.002, MeshOptions::smooth());
     assert_eq!(a.mesh, b.mesh);
 }
 

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use voxoct::depth::{RecordedScan, ScanWriter, ScannerConfig};
 use voxoct::kinect::{DepthSource, FakenectSource, Model, SimConfig, SimulatedKinect};
-use voxoct::pipeline::SnapshotFrames;
+use voxoct::pipeline::{SnapshotFrames, recorded_snapshots};
 use voxoct::turntable::{SimulatedTurntable, Turntable};
 
 use crate::{Args, Progress};
@@ -84,22 +84,11 @@ fn load_recorded(
             .map_err(|e| format!("--config does not fit {}: {e}", dir.display()))?;
     }
     pb.finish_and_clear();
-    let angles: Vec<f32> = scan
-        .manifest
-        .snapshots
-        .iter()
-        .map(|s| s.angle_deg)
-        .collect();
+    let (config, snapshots) = recorded_snapshots(scan);
     let settings = Settings {
-        config: scan.manifest.config(),
+        config,
         source: format!("recorded scan {}", dir.display()),
     };
-    let snapshots = scan
-        .frames
-        .into_iter()
-        .zip(angles)
-        .map(|(frames, angle_deg)| SnapshotFrames { angle_deg, frames })
-        .collect();
     Ok(Acquired {
         settings,
         snapshots,
