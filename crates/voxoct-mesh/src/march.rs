@@ -14,10 +14,11 @@
 use std::collections::HashMap;
 
 use voxoct_core::GridSpec;
-use voxoct_core::glam::{DVec3, UVec3};
+use voxoct_core::glam::{DVec3, UVec3, Vec3};
 
 use crate::mesh::Mesh;
 use crate::options::Placement;
+use crate::par;
 use crate::tables::{CASES, corner_offset};
 
 /// Grid coordinates are shifted by this so that cube minimum corners at −1 stay positive and
@@ -28,6 +29,8 @@ const ROWS: usize = 7 * 64;
 /// Vertices never come closer to an edge end than this fraction of the edge.
 pub(crate) const T_MIN: f32 = 0.02;
 const NONE: u32 = u32::MAX;
+/// Bricks per parallel task of the triangle pass (the result does not depend on it).
+const BRICKS_PER_TASK: usize = 64;
 
 /// Bits set in each byte (a table: the baseline x86-64 target has no `popcnt`).
 static POP8: [u8; 256] = {
@@ -214,16 +217,25 @@ pub(crate) fn crossing(placement: Placement, fp: f32, fq: f32, len: f32) -> f32 
     }
 }
 
+/// A brick's edge rows and inside bits.
+#[derive(Debug, Clone)]
+struct BrickRows {
+    /// Per edge row: the index of the row's first vertex (low 32 bits) and the row's
+    /// crossing-edge mask (bits 32..40), in one word so a lookup is one load.
+    rows: [u64; ROWS],
+    /// [`Bricks::padded_rows`].
+    padded: [[u16; 9]; 9],
+    /// Vertices on the brick's edges.
+    count: u32,
+}
+
 /// Buffers reused from one meshing to the next.
 #[derive(Debug, Default)]
 pub(crate) struct Scratch {
     /// The cells to march (grid coordinates and value, see [`Inside`]).
     pub entries: Vec<(UVec3, f32)>,
     bricks: Bricks,
-    /// Per brick and edge row: the index of the row's first vertex (low 32 bits) and the
-    /// row's crossing-edge mask (bits 32..40), in one word so a lookup is one load.
-    rows: Vec<u64>,
-    padded: Vec<[[u16; 9]; 9]>,
+    per_brick: Vec<BrickRows>,
 }
 
 /// Marches `scratch.entries` into `out` (cleared first).
@@ -237,18 +249,17 @@ pub(crate) fn march(
     let Scratch {
         entries,
         bricks,
-        rows: edge_rows,
-        padded,
+        per_brick,
     } = scratch;
     bricks.build(entries, inside);
     let bricks = &*bricks;
     let n = bricks.keys.len();
-    edge_rows.clear();
-    edge_rows.resize(n * ROWS, 0);
-    padded.clear();
-    let mut count = 0u32;
-    for b in 0..n {
+    // Pass 1, per brick: the crossing-edge masks of its rows and their vertex offsets from
+    // the brick's first vertex; then the bricks' first vertices by a prefix sum.
+    par::map_into(per_brick, n, |b| {
         let p = bricks.padded_rows(b);
+        let mut rows = [0u64; ROWS];
+        let mut count = 0u32;
         for d in 1..8u8 {
             let [dx, dy, dz] = corner_offset(d).map(|v| v as usize);
             for z in 0..8 {
@@ -256,32 +267,57 @@ pub(crate) fn march(
                     let a = p[z][y];
                     let c = p[z + dz][y + dy] >> dx;
                     let m = ((a ^ c) & 0xFF) as u8;
-                    let i = b * ROWS + (d as usize - 1) * 64 + z * 8 + y;
-                    edge_rows[i] = u64::from(count) | (u64::from(m) << 32);
+                    rows[(d as usize - 1) * 64 + z * 8 + y] =
+                        u64::from(count) | (u64::from(m) << 32);
                     count += u32::from(POP8[m as usize]);
                 }
             }
         }
-        padded.push(p);
+        BrickRows {
+            rows,
+            padded: p,
+            count,
+        }
+    });
+    let mut brick_first = vec![0u32; n + 1];
+    for b in 0..n {
+        brick_first[b + 1] = brick_first[b] + per_brick[b].count;
     }
+    let count = brick_first[n];
+    let brick_first = &brick_first;
+    par::for_each_zip(per_brick.iter_mut(), 0..n, |b, br, _| {
+        let first = u64::from(brick_first[b]);
+        for r in &mut br.rows {
+            *r += first;
+        }
+    });
+    let per_brick = &*per_brick;
 
-    // Pass 2: vertex positions, in index order.
+    // Pass 2: vertex positions, in index order (each brick fills its own range).
     let cell = f64::from(grid.cell);
     // World position of grid point g (shifted coordinates): origin + (g - SHIFT + 0.5) · cell.
     let offset = grid.origin.as_dvec3() + DVec3::splat((0.5 - f64::from(SHIFT)) * cell);
     let vertices = &mut out.vertices;
     vertices.clear();
-    vertices.reserve(count as usize);
+    vertices.resize(count as usize, Vec3::ZERO);
+    let mut ranges = Vec::with_capacity(n);
+    let mut rest = &mut vertices[..];
     for b in 0..n {
+        let (head, tail) = rest.split_at_mut((brick_first[b + 1] - brick_first[b]) as usize);
+        ranges.push(head);
+        rest = tail;
+    }
+    par::for_each_zip(ranges.iter_mut(), 0..n, |b, dst, _| {
         let key = bricks.keys[b];
         let base = [key[0] * 8, key[1] * 8, key[2] * 8];
+        let mut next = dst.iter_mut();
         for d in 1..8u8 {
             let dir = corner_offset(d);
             let dirf = DVec3::new(f64::from(dir[0]), f64::from(dir[1]), f64::from(dir[2]));
             let len = ((dir[0] + dir[1] + dir[2]) as f32).sqrt();
             for z in 0..8u32 {
                 for y in 0..8u32 {
-                    let mut m = (edge_rows[b * ROWS + (d as usize - 1) * 64 + (z * 8 + y) as usize]
+                    let mut m = (per_brick[b].rows[(d as usize - 1) * 64 + (z * 8 + y) as usize]
                         >> 32) as u8;
                     while m != 0 {
                         let x = m.trailing_zeros();
@@ -306,24 +342,22 @@ pub(crate) fn march(
                             f64::from(base[2] + z) + t * dirf.z,
                         );
                         let pos = offset + g * cell;
-                        vertices.push(pos.as_vec3());
+                        if let Some(v) = next.next() {
+                            *v = pos.as_vec3();
+                        }
                     }
                 }
             }
         }
-    }
-    debug_assert_eq!(vertices.len(), count as usize);
+        debug_assert!(next.next().is_none());
+    });
 
-    // Pass 3: triangles.
+    // Pass 3: triangles, per group of bricks, joined in brick order.
     let table = &*CASES;
-    let triangles = &mut out.triangles;
-    triangles.clear();
-    // A closed piece of genus g has 2 (V - 2 + 2g) triangles: twice the vertices, plus slack
-    // for handles, so that the buffer need not double.
-    triangles.reserve(count as usize * 2 + count as usize / 32 + 64);
-    for (b, p) in padded.iter().enumerate() {
-        // Row bases of the eight bricks this brick's cubes reach into.
-        let nb_base = bricks.nb[b].map(|bb| (bb as usize).wrapping_mul(ROWS));
+    let brick_triangles = |b: usize, triangles: &mut Vec<[u32; 3]>| {
+        let p = &per_brick[b].padded;
+        // The eight bricks this brick's cubes reach into.
+        let nb = bricks.nb[b];
         for z in 0..8usize {
             for y in 0..8usize {
                 let r = [[p[z][y], p[z][y + 1]], [p[z + 1][y], p[z + 1][y + 1]]];
@@ -344,8 +378,8 @@ pub(crate) fn march(
                     for (id, e) in ids.iter_mut().zip(edges) {
                         let (px, py, pz) = (x + e.ox, y as u32 + e.oy, z as u32 + e.oz);
                         let o = (px >> 3) | ((py >> 3) << 1) | ((pz >> 3) << 2);
-                        let i = nb_base[o as usize] + e.row + ((pz & 7) * 8 + (py & 7)) as usize;
-                        let w = edge_rows[i];
+                        let w = per_brick[nb[o as usize] as usize].rows
+                            [e.row + ((pz & 7) * 8 + (py & 7)) as usize];
                         let m = (w >> 32) as u32;
                         debug_assert!(m >> (px & 7) & 1 == 1, "edge without a vertex");
                         *id = w as u32 + u32::from(POP8[(m & ((1u32 << (px & 7)) - 1)) as usize]);
@@ -360,5 +394,11 @@ pub(crate) fn march(
                 }
             }
         }
-    }
+    };
+    let triangles = &mut out.triangles;
+    triangles.clear();
+    // A closed piece of genus g has 2 (V - 2 + 2g) triangles: twice the vertices, plus slack
+    // for handles, so that the buffer need not double.
+    triangles.reserve(count as usize * 2 + count as usize / 32 + 64);
+    par::extend_in_order(triangles, n, BRICKS_PER_TASK, brick_triangles);
 }

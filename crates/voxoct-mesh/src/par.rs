@@ -62,6 +62,72 @@ pub(crate) fn fill<T: Send>(dst: &mut [T], f: impl Fn(usize) -> T + Sync) {
     }
 }
 
+/// `f(i, a_i, b_i)` for the pairs of two sequences of the same length, `i` counting from 0.
+pub(crate) fn for_each_zip<A, B>(
+    a: impl IntoIterator<Item = A>,
+    b: impl IntoIterator<Item = B>,
+    f: impl Fn(usize, A, B) + Sync,
+) where
+    A: Send,
+    B: Send,
+{
+    let items: Vec<(A, B)> = a.into_iter().zip(b).collect();
+    #[cfg(feature = "parallel")]
+    items
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(i, (a, b))| f(i, a, b));
+    #[cfg(not(feature = "parallel"))]
+    for (i, (a, b)) in items.into_iter().enumerate() {
+        f(i, a, b);
+    }
+}
+
+/// `dst` becomes `[f(0), f(1), …, f(n - 1)]` (its buffer reused).
+pub(crate) fn map_into<T: Send>(dst: &mut Vec<T>, n: usize, f: impl Fn(usize) -> T + Sync) {
+    #[cfg(feature = "parallel")]
+    (0..n).into_par_iter().map(&f).collect_into_vec(dst);
+    #[cfg(not(feature = "parallel"))]
+    {
+        dst.clear();
+        dst.extend((0..n).map(f));
+    }
+}
+
+/// Appends to `dst` what `f(i, buffer)` appends for every `i` in `0..n`, in order of `i`
+/// (in parallel: `per_task` consecutive `i` per task, joined in order).
+pub(crate) fn extend_in_order<T: Send>(
+    dst: &mut Vec<T>,
+    n: usize,
+    per_task: usize,
+    f: impl Fn(usize, &mut Vec<T>) + Sync,
+) {
+    #[cfg(feature = "parallel")]
+    {
+        let per_task = per_task.max(1);
+        let parts: Vec<Vec<T>> = (0..n.div_ceil(per_task))
+            .into_par_iter()
+            .map(|t| {
+                let mut part = Vec::new();
+                for i in t * per_task..((t + 1) * per_task).min(n) {
+                    f(i, &mut part);
+                }
+                part
+            })
+            .collect();
+        for mut part in parts {
+            dst.append(&mut part);
+        }
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        let _ = per_task;
+        for i in 0..n {
+            f(i, dst);
+        }
+    }
+}
+
 /// Whether `f` holds for any item.
 pub(crate) fn any<T: Sync>(items: &[T], f: impl Fn(&T) -> bool + Sync) -> bool {
     #[cfg(feature = "parallel")]
