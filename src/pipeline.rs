@@ -272,7 +272,7 @@ pub fn reconstruct(
         let distance = config.rig.sensor_position_m.length();
         let margin = 2.0 * kinect_v1_sigma(distance) + 0.87 * grid.cell;
         let floor = match options.floor {
-            Floor::Y(y) => ((y - grid.origin.y) / grid.cell - 0.5).ceil().max(0.0) as u32,
+            Floor::Y(y) => Floor::y_layer(y, &grid),
             _ => 0,
         };
         cells = with_hidden_cells(cells, &grid, &views, margin, floor);
@@ -280,10 +280,7 @@ pub fn reconstruct(
     drop(filtered);
     let mut mesh = voxoct_mesh::mesh_cells(&cells, &grid, &options)?;
     drop(cells);
-    if params.min_piece_fraction > 0.0 {
-        let largest = mesh.largest_component_triangles();
-        mesh.remove_small_components((params.min_piece_fraction * largest as f32).ceil() as usize);
-    }
+    mesh.remove_pieces_below_fraction(params.min_piece_fraction);
     timings.mesh = t.elapsed();
 
     Ok(Reconstruction {

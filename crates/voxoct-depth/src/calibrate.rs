@@ -145,16 +145,7 @@ impl SplitMix {
 
 /// Camera-frame points of every pixel of `frame` (NaN where there is no reading).
 fn camera_points(frame: &DepthFrame, intr: &Intrinsics) -> Result<Vec<Vec3>, DepthError> {
-    crate::filter::check_frame(0, frame)?;
-    if (frame.width, frame.height) != (intr.width, intr.height) {
-        return Err(DepthError::FrameSizeMismatch {
-            index: 0,
-            expected_w: intr.width,
-            expected_h: intr.height,
-            found_w: frame.width,
-            found_h: frame.height,
-        });
-    }
+    crate::filter::check_frame_size(0, frame, intr.width, intr.height)?;
     let w = frame.width as usize;
     Ok(frame
         .data

@@ -359,19 +359,31 @@ pub(crate) fn check_frame(index: usize, f: &DepthFrame) -> Result<(), DepthError
     Ok(())
 }
 
-fn check_frames(frames: &[DepthFrame]) -> Result<(), DepthError> {
+/// Checks that frame `index` is well formed and `width × height` pixels.
+pub(crate) fn check_frame_size(
+    index: usize,
+    f: &DepthFrame,
+    width: u32,
+    height: u32,
+) -> Result<(), DepthError> {
+    check_frame(index, f)?;
+    if (f.width, f.height) != (width, height) {
+        return Err(DepthError::FrameSizeMismatch {
+            index,
+            expected_w: width,
+            expected_h: height,
+            found_w: f.width,
+            found_h: f.height,
+        });
+    }
+    Ok(())
+}
+
+/// Checks that the frames of one snapshot are well formed, of one size and one unit.
+pub(crate) fn check_frames(frames: &[DepthFrame]) -> Result<(), DepthError> {
     let first = frames.first().ok_or(DepthError::NoFrames)?;
     for (i, f) in frames.iter().enumerate() {
-        check_frame(i, f)?;
-        if (f.width, f.height) != (first.width, first.height) {
-            return Err(DepthError::FrameSizeMismatch {
-                index: i,
-                expected_w: first.width,
-                expected_h: first.height,
-                found_w: f.width,
-                found_h: f.height,
-            });
-        }
+        check_frame_size(i, f, first.width, first.height)?;
         #[allow(clippy::float_cmp)]
         if f.unit_m != first.unit_m {
             return Err(DepthError::UnitMismatch {

@@ -17,7 +17,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use crate::error::DepthError;
-use crate::filter::check_frame;
+use crate::filter::{check_frame, check_frame_size, check_frames};
 use crate::snapshot::{Snapshot, write_atomic};
 use crate::types::DepthFrame;
 
@@ -92,21 +92,11 @@ pub fn write_png(path: impl AsRef<Path>, img: &RgbImage) -> Result<(), DepthErro
 
 /// For each pixel, how many of `frames` have no reading there.
 ///
-/// Errors when a frame is malformed or the frames differ in size.
+/// Errors when a frame is malformed or the frames differ in size or unit.
 pub fn invalid_counts(frames: &[DepthFrame]) -> Result<Vec<u16>, DepthError> {
-    let first = frames.first().ok_or(DepthError::NoFrames)?;
-    let mut counts = vec![0u16; first.len()];
-    for (i, f) in frames.iter().enumerate() {
-        check_frame(i, f)?;
-        if (f.width, f.height) != (first.width, first.height) {
-            return Err(DepthError::FrameSizeMismatch {
-                index: i,
-                expected_w: first.width,
-                expected_h: first.height,
-                found_w: f.width,
-                found_h: f.height,
-            });
-        }
+    check_frames(frames)?;
+    let mut counts = vec![0u16; frames[0].len()];
+    for f in frames {
         for (c, &d) in counts.iter_mut().zip(&f.data) {
             *c = c.saturating_add(u16::from(d == 0));
         }
@@ -176,16 +166,8 @@ pub fn snapshot_image(
     filtered: &DepthFrame,
 ) -> Result<RgbImage, DepthError> {
     let counts = invalid_counts(frames)?;
+    check_frame_size(0, filtered, frames[0].width, frames[0].height)?;
     let mut img = depth_image(filtered)?;
-    if counts.len() != filtered.len() {
-        return Err(DepthError::FrameSizeMismatch {
-            index: 0,
-            expected_w: frames[0].width,
-            expected_h: frames[0].height,
-            found_w: filtered.width,
-            found_h: filtered.height,
-        });
-    }
     let n = frames.len() as f32;
     for (px, &c) in img.data.chunks_exact_mut(3).zip(&counts) {
         if c > 0 {
@@ -225,16 +207,7 @@ pub fn difference_image(
     scale_m: Option<f32>,
 ) -> Result<(RgbImage, DiffStats), DepthError> {
     check_frame(0, a)?;
-    check_frame(1, b)?;
-    if (a.width, a.height) != (b.width, b.height) {
-        return Err(DepthError::FrameSizeMismatch {
-            index: 1,
-            expected_w: a.width,
-            expected_h: a.height,
-            found_w: b.width,
-            found_h: b.height,
-        });
-    }
+    check_frame_size(1, b, a.width, a.height)?;
     let diffs: Vec<Option<f32>> = a
         .data
         .iter()

@@ -8,7 +8,7 @@ use byteorder::{ByteOrder, LittleEndian, ReadBytesExt, WriteBytesExt};
 use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 
 use crate::error::DepthError;
-use crate::filter::check_frame;
+use crate::filter::check_frame_size;
 use crate::types::{ClipBox, DepthFrame, Intrinsics, Rig};
 
 /// The transformed, clipped point grid of one snapshot, in the common object frame.
@@ -66,16 +66,7 @@ impl Snapshot {
         angle_deg: f32,
         clip: &ClipBox,
     ) -> Result<(), DepthError> {
-        check_frame(0, frame)?;
-        if (frame.width, frame.height) != (intr.width, intr.height) {
-            return Err(DepthError::FrameSizeMismatch {
-                index: 0,
-                expected_w: intr.width,
-                expected_h: intr.height,
-                found_w: frame.width,
-                found_h: frame.height,
-            });
-        }
+        check_frame_size(0, frame, intr.width, intr.height)?;
         let positive = |name, x: f32| {
             if x.is_finite() && x > 0.0 {
                 Ok(())

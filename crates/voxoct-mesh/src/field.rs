@@ -82,14 +82,7 @@ pub(crate) fn prepare(
     let floor_layer = match opts.floor {
         Floor::None => None,
         Floor::LowestMarked => out.iter().map(|c| c.0.y).min(),
-        Floor::Y(y) => {
-            let l = ((y - grid.origin.y) * inv - 0.5).ceil();
-            Some(if l <= 0.0 {
-                0
-            } else {
-                l.min(u32::MAX as f32) as u32
-            })
-        }
+        Floor::Y(y) => Some(Floor::y_layer(y, grid)),
     };
     if let Some(f) = floor_layer {
         out.retain(|c| c.0.y >= f);

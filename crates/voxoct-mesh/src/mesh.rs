@@ -363,10 +363,29 @@ impl Mesh {
     /// outward piece deletes a stray blob; removing a small inward one (a bubble inside a
     /// solid) fills the bubble.
     pub fn remove_small_components(&mut self, min_triangles: usize) -> usize {
-        if min_triangles <= 1 || self.triangles.is_empty() {
+        self.retain_components(|_| min_triangles)
+    }
+
+    /// Removes every connected piece with fewer triangles than `fraction` of the largest
+    /// piece's (stray blobs, bubbles inside a solid), as [`Mesh::remove_small_components`]
+    /// does; returns how many pieces were removed. `fraction <= 0` removes nothing.
+    pub fn remove_pieces_below_fraction(&mut self, fraction: f32) -> usize {
+        if fraction.is_nan() || fraction <= 0.0 {
+            return 0;
+        }
+        self.retain_components(|largest| (fraction * largest as f32).ceil() as usize)
+    }
+
+    /// Keeps the pieces of at least `min(largest piece's triangles)` triangles.
+    fn retain_components(&mut self, min: impl FnOnce(usize) -> usize) -> usize {
+        if self.triangles.is_empty() {
             return 0;
         }
         let (roots, size) = self.triangle_components();
+        let min_triangles = min(size.iter().copied().max().unwrap_or(0));
+        if min_triangles <= 1 {
+            return 0;
+        }
         let removed = size.iter().filter(|&&n| n > 0 && n < min_triangles).count();
         if removed == 0 {
             return 0;
@@ -375,12 +394,6 @@ impl Mesh {
         self.triangles.retain(|_| keep.next().unwrap_or(true));
         self.remove_unused_vertices();
         removed
-    }
-
-    /// Triangles in the largest connected piece (0 for an empty mesh).
-    #[must_use]
-    pub fn largest_component_triangles(&self) -> usize {
-        self.triangle_components().1.into_iter().max().unwrap_or(0)
     }
 
     /// For each triangle its piece's root vertex, and for each root the piece's triangles.

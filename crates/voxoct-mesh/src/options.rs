@@ -1,5 +1,6 @@
 //! Meshing options and the error type.
 
+use voxoct_core::GridSpec;
 use voxoct_core::glam::UVec3;
 
 /// The floor: nothing below it is meshed, and the flood fill that finds the outside (solid
@@ -17,6 +18,20 @@ pub enum Floor {
     /// The plane `y` (metres, platform frame: the clip box's floor): cells whose centre lies
     /// below it are dropped and closed to the flood fill.
     Y(f32),
+}
+
+impl Floor {
+    /// The grid layer of the plane `y` (metres): the first layer whose cell centres lie at or
+    /// above it (0 when `y` is below the grid). This is where [`Floor::Y`] cuts.
+    #[must_use]
+    pub fn y_layer(y: f32, grid: &GridSpec) -> u32 {
+        let l = ((y - grid.origin.y) * (1.0 / grid.cell) - 0.5).ceil();
+        if l <= 0.0 {
+            0
+        } else {
+            l.min(u32::MAX as f32) as u32
+        }
+    }
 }
 
 /// How vertices are placed along their grid edges.

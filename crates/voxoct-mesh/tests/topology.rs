@@ -117,6 +117,10 @@ proptest! {
             prop_assert_eq!(mesh.stats().components, before - removed);
             // Every piece left has at least `min` triangles: removing again removes nothing.
             prop_assert_eq!(mesh.remove_small_components(min), 0);
+            // Relative removal: what is left is closed, and removing again removes nothing.
+            mesh.remove_pieces_below_fraction(0.5);
+            mesh.check_closed_manifold().map_err(|e| TestCaseError::fail(format!("{opts:?}: {e}")))?;
+            prop_assert_eq!(mesh.remove_pieces_below_fraction(0.5), 0);
         }
     }
 
