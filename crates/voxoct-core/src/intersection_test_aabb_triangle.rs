@@ -78,8 +78,8 @@ pub fn intersection_test_aabb_triangle(aabb: &Aabb, tri: &Triangle) -> bool {
         (mn.x, mx.x, mn.y, mx.y),
     ];
     for (u, &(p0, p1, q0, q1)) in pairs.iter().enumerate() {
-        for ed in e {
-            let (a, b, lo, hi) = edge_axis(u, ed, &v);
+        for (i, &ed) in e.iter().enumerate() {
+            let (a, b, lo, hi) = edge_axis(u, i, ed, &v);
             if !edge_passes(a, b, lo, hi, p0, p1, q0, q1) {
                 return false;
             }
@@ -94,31 +94,32 @@ fn edges(v: &[DVec3; 3]) -> [DVec3; 3] {
     [v[1] - v[0], v[2] - v[1], v[0] - v[2]]
 }
 
-/// The axis `ed × u` (box axis `u`) as coefficients on the two other coordinates
-/// ((y, z), (x, z) or (x, y)), and the triangle's projection interval on it.
+/// The axis `e_i × u` (edge `i`, box axis `u`) as coefficients on the two other
+/// coordinates ((y, z), (x, z) or (x, y)), and the triangle's projection interval on
+/// it: spanned by the edge's start `v[i]` and the opposite vertex `v[i + 2]` (the
+/// edge's end projects to the same point as its start, exactly).
 #[inline(always)]
-fn edge_axis(u: usize, ed: DVec3, v: &[DVec3; 3]) -> (f64, f64, f64, f64) {
-    let (a, b, lo, hi);
+fn edge_axis(u: usize, i: usize, ed: DVec3, v: &[DVec3; 3]) -> (f64, f64, f64, f64) {
+    let (s, o) = (v[i], v[(i + 2) % 3]);
+    let (a, b, ps, po);
     match u {
         0 => {
             // edge × x = (0, e.z, -e.y)
             (a, b) = (ed.z, -ed.y);
-            let p = |w: DVec3| a * w.y + b * w.z;
-            (lo, hi) = min_max3(p(v[0]), p(v[1]), p(v[2]));
+            (ps, po) = (a * s.y + b * s.z, a * o.y + b * o.z);
         }
         1 => {
             // edge × y = (-e.z, 0, e.x)
             (a, b) = (-ed.z, ed.x);
-            let p = |w: DVec3| a * w.x + b * w.z;
-            (lo, hi) = min_max3(p(v[0]), p(v[1]), p(v[2]));
+            (ps, po) = (a * s.x + b * s.z, a * o.x + b * o.z);
         }
         _ => {
             // edge × z = (e.y, -e.x, 0)
             (a, b) = (ed.y, -ed.x);
-            let p = |w: DVec3| a * w.x + b * w.y;
-            (lo, hi) = min_max3(p(v[0]), p(v[1]), p(v[2]));
+            (ps, po) = (a * s.x + b * s.y, a * o.x + b * o.y);
         }
     }
+    let (lo, hi) = if ps < po { (ps, po) } else { (po, ps) };
     (a, b, lo, hi)
 }
 
@@ -154,7 +155,7 @@ fn span(a: f64, mn: f64, mx: f64) -> (f64, f64) {
 ///
 /// Every box test of the crate (the public function, the reference descent and the
 /// pruning of large blocks) goes through [`TriangleSat::overlaps_skip_box_axes`] with
-/// the same `f64` box corners; the fast insertion's [`TriangleSat::block4_mask`]
+/// the same `f64` box corners; the fast insertion's [`TriangleSat::block_mask`]
 /// evaluates the very same products, sums and comparisons for many cells at once, so
 /// they all agree bit for bit.
 #[derive(Debug, Clone)]
@@ -207,7 +208,7 @@ impl TriangleSat {
         let mut ehi = [[0.0; 3]; 3];
         for u in 0..3 {
             for (i, &ed) in e.iter().enumerate() {
-                (ea[u][i], eb[u][i], elo[u][i], ehi[u][i]) = edge_axis(u, ed, &v);
+                (ea[u][i], eb[u][i], elo[u][i], ehi[u][i]) = edge_axis(u, i, ed, &v);
             }
         }
         let bmin = tri.v[0].min(tri.v[1]).min(tri.v[2]);
@@ -266,112 +267,125 @@ impl TriangleSat {
     }
 
     /// The cells of a block of at most 4×4×4 cells whose box is
-    /// `planes[0][i]..=planes[0][i + 1]` × … and whose bounding-box axes are already
-    /// known to pass, as bits `i + 4 j + 16 k` of the result (cells outside `dims` are
-    /// never set; planes beyond `dims` must be finite, e.g. repeats of the last one).
+    /// `planes[0][i]..=planes[0][i + 1]` × … (`i < dims[0]`, …) and whose bounding-box
+    /// axes are already known to pass, as bits `i + 4 j + 16 k` of the result. Planes
+    /// beyond `dims` must be finite (further grid planes): the cells they bound are
+    /// evaluated with the others and dropped.
     ///
     /// Bit-identical to [`overlaps_skip_box_axes`](Self::overlaps_skip_box_axes) cell
-    /// by cell: the very same products, sums and comparisons, but with fixed-size
-    /// loops that the compiler unrolls and vectorises, and each product computed once
-    /// per plane.
+    /// by cell: the very same products, sums and comparisons. An edge axis acts on a
+    /// pair of coordinates only, so it is decided once per column of cells; and since
+    /// the sums are monotone in the cell index (so is `f64` rounding), an edge axis that
+    /// does not separate the block's extreme cell separates none of its cells and is
+    /// not evaluated cell by cell.
     #[inline]
-    pub(crate) fn block4_mask(&self, planes: &[[f64; 8]; 3], dims: [usize; 3]) -> u64 {
-        let [xs, ys, zs] = planes;
-        // Edge axes: bits `4 q + p` for cells `p` (first coordinate), `q` (second).
+    pub(crate) fn block_mask(&self, planes: &[[f64; 5]; 3], dims: [usize; 3]) -> u64 {
+        const ROW: [u64; 5] = [0, 0x1, 0x11, 0x111, 0x1111];
+        const LAYER: [u64; 5] = [0, 0x1, 0x1_0001, 0x1_0001_0001, 0x1_0001_0001_0001];
         let [nx, ny, nz] = dims;
-        let yz = self.pair4(0, ys, ny, zs, nz);
-        let xz = self.pair4(1, xs, nx, zs, nz);
-        let xy = self.pair4(2, xs, nx, ys, ny);
-        let xm = (1u32 << dims[0]) - 1;
-        // Normal axis, per-axis spans.
-        let mut nlo = [[0.0f64; 4]; 3];
-        let mut nhi = [[0.0f64; 4]; 3];
-        for a in 0..3 {
-            let na = self.n[a];
-            let prod: [f64; 5] = std::array::from_fn(|t| na * planes[a][t]);
-            for i in 0..4 {
-                (nlo[a][i], nhi[a][i]) = if na >= 0.0 {
-                    (prod[i], prod[i + 1])
-                } else {
-                    (prod[i + 1], prod[i])
-                };
-            }
-        }
-        let mut mask = 0u64;
-        for k in 0..dims[2] {
-            let xz_row = (xz >> (4 * k)) & 0xf;
-            for j in 0..dims[1] {
-                if (yz >> (4 * k + j)) & 1 == 0 {
-                    continue;
-                }
-                let mut row = xz_row & (xy >> (4 * j)) & xm;
-                let (lyz, hyz) = (nlo[1][j], nhi[1][j]);
-                while row != 0 {
-                    let i = row.trailing_zeros() as usize;
-                    row &= row - 1;
-                    // The same sums as `normal_passes`.
-                    if !(self.n_hi < (nlo[0][i] + lyz) + nlo[2][k]
-                        || self.n_lo > (nhi[0][i] + hyz) + nhi[2][k])
-                    {
-                        mask |= 1u64 << (i + 4 * j + 16 * k);
-                    }
-                }
-            }
-        }
-        mask
+        let valid = ((1u64 << nx) - 1) * ROW[ny] * LAYER[nz];
+        // Fixed sizes (2 or 4 per axis), so that every loop unrolls.
+        let m = match (nx > 2, ny > 2, nz > 2) {
+            (false, false, false) => self.block_mask_n::<2, 2, 2>(planes),
+            (false, false, true) => self.block_mask_n::<2, 2, 4>(planes),
+            (false, true, false) => self.block_mask_n::<2, 4, 2>(planes),
+            (false, true, true) => self.block_mask_n::<2, 4, 4>(planes),
+            (true, false, false) => self.block_mask_n::<4, 2, 2>(planes),
+            (true, false, true) => self.block_mask_n::<4, 2, 4>(planes),
+            (true, true, false) => self.block_mask_n::<4, 4, 2>(planes),
+            (true, true, true) => self.block_mask_n::<4, 4, 4>(planes),
+        };
+        m & valid
     }
 
-    /// For box axis `u`, the pairs `(p, q)` of cells (planes `ps`, `qs`; `p < np`,
-    /// `q < nq`, at most 4 each) on which none of the three edge axes separates, as
-    /// bits `4 q + p`.
+    /// [`block_mask`](Self::block_mask) of the `NX × NY × NZ` block (bits of cells
+    /// beyond the real block included).
     #[inline(always)]
-    fn pair4(&self, u: usize, ps: &[f64; 8], np: usize, qs: &[f64; 8], nq: usize) -> u32 {
+    fn block_mask_n<const NX: usize, const NY: usize, const NZ: usize>(
+        &self,
+        planes: &[[f64; 5]; 3],
+    ) -> u64 {
+        let [xs, ys, zs] = planes;
+        // Edge axes, as bits `4 q + p` of the columns they pass, spread to the cells.
+        let yz = self.pair_pass::<NY, NZ>(0, ys, zs);
+        let xz = self.pair_pass::<NX, NZ>(1, xs, zs);
+        let xy = self.pair_pass::<NX, NY>(2, xs, ys);
+        if yz == 0 || xz == 0 || xy == 0 {
+            return 0;
+        }
+        let edges = (spread_nibbles(yz) * 0xf)
+            & (spread_rows(xz) * 0x1111)
+            & (u64::from(xy) * 0x0001_0001_0001_0001);
+        // Normal axis: the low and high ends of `n[a] · [plane i, plane i + 1]` (the
+        // choices of `span`), summed as in `normal_passes`.
+        let ends = |a: usize, i: usize| {
+            let (p0, p1) = (self.n[a] * planes[a][i], self.n[a] * planes[a][i + 1]);
+            if self.n[a] >= 0.0 { (p0, p1) } else { (p1, p0) }
+        };
+        let ex: [(f64, f64); NX] = std::array::from_fn(|i| ends(0, i));
+        let ey: [(f64, f64); NY] = std::array::from_fn(|j| ends(1, j));
+        let ez: [(f64, f64); NZ] = std::array::from_fn(|k| ends(2, k));
+        let mut sxy = [[(0.0f64, 0.0f64); NX]; NY];
+        for (j, &(ly, hy)) in ey.iter().enumerate() {
+            for (i, &(lx, hx)) in ex.iter().enumerate() {
+                sxy[j][i] = (lx + ly, hx + hy);
+            }
+        }
+        let mut normal = 0u64;
+        for (k, &(lz, hz)) in ez.iter().enumerate() {
+            for (j, row) in sxy.iter().enumerate() {
+                for (i, &(l, h)) in row.iter().enumerate() {
+                    let pass = self.n_hi >= l + lz && self.n_lo <= h + hz;
+                    normal |= u64::from(pass) << (i + 4 * j + 16 * k);
+                }
+            }
+        }
+        normal & edges
+    }
+
+    /// For box axis `u`, the pairs `(p, q)` of cells (planes `ps`, `qs`; `p < NP`,
+    /// `q < NQ`) on which none of the three edge axes separates, as bits `4 q + p`
+    /// (`edge_passes` cell by cell).
+    #[inline(always)]
+    fn pair_pass<const NP: usize, const NQ: usize>(
+        &self,
+        u: usize,
+        ps: &[f64; 5],
+        qs: &[f64; 5],
+    ) -> u32 {
         let mut sep = 0u32;
         for e in 0..3 {
             let (a, b, lo, hi) = (self.ea[u][e], self.eb[u][e], self.elo[u][e], self.ehi[u][e]);
-            // The same choices as `span`: cell `p` spans `a * ps[p + sa]` (low) to
-            // `a * ps[p + 1 - sa]` (high). Products are computed where needed (the
-            // same product twice gives the same bits).
-            let sa = usize::from(a < 0.0); // never NaN here
+            // `span`'s choices: cell `p` spans `a * ps[p + sa]` (low end) to
+            // `a * ps[p + 1 - sa]` (high end).
+            let sa = usize::from(a < 0.0);
             let sb = usize::from(b < 0.0);
-            let la = |p: usize| a * ps[(p + sa) & 7];
-            let ha = |p: usize| a * ps[(p + 1 - sa) & 7];
-            let lb = |q: usize| b * qs[(q + sb) & 7];
-            let hb = |q: usize| b * qs[(q + 1 - sb) & 7];
-            // The sums are monotone in `p` and `q` (so is `f64` rounding): when the
-            // extreme cells of the block pass, every cell does; in a row, the
-            // separated cells are a run from the extreme end.
-            let (pl, ph) = if sa == 0 { (np - 1, 0) } else { (0, np - 1) };
-            let (ql, qh) = if sb == 0 { (nq - 1, 0) } else { (0, nq - 1) };
-            // The same sums as `edge_passes`.
-            if hi < la(pl) + lb(ql) {
-                for q in 0..nq {
-                    let lbq = lb(q);
-                    let mut p = pl;
-                    while hi < la(p) + lbq {
-                        sep |= 1 << (4 * q + p);
-                        if p == ph {
-                            break;
-                        }
-                        p = if sa == 0 { p - 1 } else { p + 1 };
+            // The cells most likely separated: the largest low end and the smallest
+            // high end of the block's cells.
+            let (ia, ib) = (
+                if sa == 0 { NP - 1 } else { 1 },
+                if sb == 0 { NQ - 1 } else { 1 },
+            );
+            let low = hi < a * ps[ia] + b * qs[ib];
+            let high = lo > a * ps[NP - ia] + b * qs[NQ - ib];
+            if low {
+                for q in 0..NQ {
+                    let lb = b * qs[q + sb];
+                    for p in 0..NP {
+                        sep |= u32::from(hi < a * ps[p + sa] + lb) << (4 * q + p);
                     }
                 }
             }
-            if lo > ha(ph) + hb(qh) {
-                for q in 0..nq {
-                    let hbq = hb(q);
-                    let mut p = ph;
-                    while lo > ha(p) + hbq {
-                        sep |= 1 << (4 * q + p);
-                        if p == pl {
-                            break;
-                        }
-                        p = if sa == 0 { p + 1 } else { p - 1 };
+            if high {
+                for q in 0..NQ {
+                    let hb = b * qs[q + 1 - sb];
+                    for p in 0..NP {
+                        sep |= u32::from(lo > a * ps[p + 1 - sa] + hb) << (4 * q + p);
                     }
                 }
             }
         }
-        !sep
+        !sep & 0xffff
     }
 
     /// The unit normal's contribution `n̂[a] · (c - v0[a])` of coordinate `c` on axis
@@ -389,6 +403,24 @@ impl TriangleSat {
             && edge_passes(ea[1], eb[1], elo[1], ehi[1], p0, p1, q0, q1)
             && edge_passes(ea[2], eb[2], elo[2], ehi[2], p0, p1, q0, q1)
     }
+}
+
+/// Bit `b` of a 16-bit mask to bit `4 b`.
+#[inline(always)]
+fn spread_nibbles(x: u32) -> u64 {
+    let mut x = u64::from(x) & 0xffff;
+    x = (x | x << 24) & 0x0000_00ff_0000_00ff;
+    x = (x | x << 12) & 0x000f_000f_000f_000f;
+    x = (x | x << 6) & 0x0303_0303_0303_0303;
+    x = (x | x << 3) & 0x1111_1111_1111_1111;
+    x
+}
+
+/// Nibble `k` of a 16-bit mask to bits `16 k ..`.
+#[inline(always)]
+fn spread_rows(x: u32) -> u64 {
+    let x = u64::from(x);
+    (x & 0xf) | (x & 0xf0) << 12 | (x & 0xf00) << 24 | (x & 0xf000) << 36
 }
 
 /// `a · b`, summed in the fixed order `(x + y) + z` used for every projection.

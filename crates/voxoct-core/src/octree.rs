@@ -17,6 +17,8 @@ const SPLIT_DEPTH: u32 = 3;
 const NONE: u32 = u32::MAX;
 /// Payload block capacities (entries) of a brick, smallest first.
 const CLASSES: [u32; 10] = [2, 4, 6, 8, 12, 16, 24, 32, 48, 64];
+/// Dense slots (512 bytes each) a region may hold before an insertion batch packs them.
+const DENSE_LIMIT: usize = 4096;
 /// Brick class of a brick without a payload block.
 const NO_BLOCK: u8 = u8::MAX;
 
@@ -49,10 +51,20 @@ struct Region {
     payload: Vec<Payload>,
     /// Heads of the free lists of each block class (the link lives in `hits`).
     free: [u32; CLASSES.len()],
-    /// Direct-mapped cache of recently used bricks, keyed by the brick coordinates'
-    /// parity so that neighbouring bricks never evict each other.
+    /// Direct-mapped cache of the dense slots of recently used bricks, keyed by the
+    /// brick coordinates' parity so that neighbouring bricks never evict each other.
     cache_key: [u64; 8],
     cache_val: [u32; 8],
+    /// Bricks being written by an insertion batch, expanded to 64 payloads each so that
+    /// an update is a plain add; packed back by [`Region::flush`] at the end of every
+    /// public method (outside a batch these are empty).
+    dense: Vec<[Payload; 64]>,
+    /// Occupancy mask of each dense slot.
+    dense_mask: Vec<u64>,
+    /// Brick of each dense slot.
+    dense_brick: Vec<u32>,
+    /// Dense slot of each brick ([`NONE`] when not expanded); empty outside a batch.
+    slot_of: Vec<u32>,
 }
 
 /// Geometry shared by all regions of one octree.
@@ -64,6 +76,8 @@ struct Layout {
     region_shift: u32,
     /// Interior levels of a region's brick tree.
     levels: u32,
+    /// About `1 / grid.cell` (first guesses of cell indices only).
+    inv_cell: Real,
 }
 
 /// A sparse octree over a cubic root whose leaves are marked by inserted triangles.
@@ -79,6 +93,8 @@ pub struct Octree {
     layout: Layout,
     /// Indexed by the Morton code of the region coordinates.
     regions: Vec<Option<Box<Region>>>,
+    /// Regions written by the insertion batch in progress (empty between calls).
+    dirty: Vec<u32>,
 }
 
 impl Octree {
@@ -147,6 +163,7 @@ impl Octree {
             },
             region_shift,
             levels: region_shift.saturating_sub(2),
+            inv_cell: 1.0 / leaf_edge,
         };
         let mut regions = Vec::new();
         regions.resize_with(1 << (3 * split), || None);
@@ -158,6 +175,7 @@ impl Octree {
             leaf_edge,
             layout,
             regions,
+            dirty: Vec::new(),
         })
     }
 
@@ -293,8 +311,18 @@ impl Octree {
     /// Returns how many leaves it overlapped (already marked ones included).
     ///
     /// Degenerate triangles (zero area) and triangles with a non-finite coordinate mark
-    /// nothing and return 0; parts outside the root are ignored.
+    /// nothing and return 0; parts outside the root are ignored. For many triangles,
+    /// [`insert_all`](Self::insert_all) is faster (it packs the touched bricks once,
+    /// at the end).
     pub fn insert(&mut self, tri: &Triangle) -> usize {
+        let count = self.insert_unflushed(tri);
+        self.flush();
+        count
+    }
+
+    /// [`insert`](Self::insert) without packing the touched bricks: a batch in progress.
+    #[inline]
+    fn insert_unflushed(&mut self, tri: &Triangle) -> usize {
         if !tri.is_finite() {
             return 0;
         }
@@ -307,26 +335,49 @@ impl Octree {
         };
         let lay = self.layout;
         let (rlo, rhi) = (lo >> lay.region_shift, hi >> lay.region_shift);
+        if rlo == rhi {
+            // The common case: one region.
+            let ri = region_index(rlo);
+            let region = self.regions[ri].get_or_insert_with(|| Box::new(Region::new()));
+            if region.dense.is_empty() {
+                self.dirty.push(ri as u32);
+            }
+            return region.insert_batched(&lay, rlo << lay.region_shift, &sat, lo, hi);
+        }
         let mut count = 0;
         for rz in rlo.z..=rhi.z {
             for ry in rlo.y..=rhi.y {
                 for rx in rlo.x..=rhi.x {
                     let rc = UVec3::new(rx, ry, rz);
-                    let ri = morton3(rc) as usize;
+                    let ri = region_index(rc);
                     let (base, last) = lay.region_span(rc);
                     let region = self.regions[ri].get_or_insert_with(|| Box::new(Region::new()));
-                    count += region.insert(&lay, base, &sat, lo.max(base), hi.min(last));
+                    if region.dense.is_empty() {
+                        self.dirty.push(ri as u32);
+                    }
+                    count += region.insert_batched(&lay, base, &sat, lo.max(base), hi.min(last));
                 }
             }
         }
         count
     }
 
-    /// Inserts every triangle, in order (see [`insert`](Self::insert)).
+    /// Ends an insertion batch: packs the bricks that it expanded.
+    fn flush(&mut self) {
+        for ri in self.dirty.drain(..) {
+            if let Some(r) = self.regions[ri as usize].as_deref_mut() {
+                r.flush();
+            }
+        }
+    }
+
+    /// Inserts every triangle, in order: the same result as [`insert`](Self::insert)
+    /// on each, faster.
     pub fn insert_all(&mut self, tris: &[Triangle]) {
         for t in tris {
-            self.insert(t);
+            self.insert_unflushed(t);
         }
+        self.flush();
     }
 
     /// Inserts the triangles on all threads of the current rayon pool. The result is
@@ -421,9 +472,10 @@ impl Octree {
                     continue;
                 }
                 if let Some((lo, hi)) = lay.candidates(&sat) {
-                    region.insert(&lay, base, &sat, lo.max(base), hi.min(last));
+                    region.insert_batched(&lay, base, &sat, lo.max(base), hi.min(last));
                 }
             }
+            region.flush();
         });
         for (ri, region, _) in work {
             if !region.bricks.is_empty() {
@@ -568,7 +620,7 @@ impl Octree {
         }
         let mut ranges = [(0u32, 0u32); 3];
         for (a, range) in ranges.iter_mut().enumerate() {
-            match cell_range_1d(g.origin[a], g.cell, g.resolution, p[a], p[a]) {
+            match cell_range_1d(g.origin[a], g.cell, 1.0 / g.cell, g.resolution, p[a], p[a]) {
                 Some(r) => *range = r,
                 None => return 0.0,
             }
@@ -679,16 +731,18 @@ impl Octree {
 impl Extend<Triangle> for Octree {
     fn extend<I: IntoIterator<Item = Triangle>>(&mut self, iter: I) {
         for t in iter {
-            self.insert(&t);
+            self.insert_unflushed(&t);
         }
+        self.flush();
     }
 }
 
 impl<'a> Extend<&'a Triangle> for Octree {
     fn extend<I: IntoIterator<Item = &'a Triangle>>(&mut self, iter: I) {
         for t in iter {
-            self.insert(t);
+            self.insert_unflushed(t);
         }
+        self.flush();
     }
 }
 
@@ -707,17 +761,26 @@ impl GridSpec {
 }
 
 /// On one axis of a grid (planes `o + i * cell`, `i = 0..=res`), the cells `a..=b` whose
-/// closed extent meets `[lo, hi]`; `None` when the interval misses the grid.
-#[inline]
-fn cell_range_1d(o: Real, cell: Real, res: u32, lo: Real, hi: Real) -> Option<(u32, u32)> {
+/// closed extent meets `[lo, hi]`; `None` when the interval misses the grid. `inv` is
+/// about `1 / cell`: it only makes the first guesses, which the loops make exact.
+#[inline(always)]
+fn cell_range_1d(
+    o: Real,
+    cell: Real,
+    inv: Real,
+    res: u32,
+    lo: Real,
+    hi: Real,
+) -> Option<(u32, u32)> {
     // The same expression as `GridSpec::corner`, component-wise.
     let plane = |i: u32| o + i as Real * cell;
-    if hi < o || lo > plane(res) || lo.is_nan() || hi.is_nan() {
+    // (NaN fails both comparisons.)
+    if !(hi >= o && lo <= plane(res)) {
         return None;
     }
     let last = res - 1;
-    // Truncating guesses (no libm floor); the loops make them exact.
-    let guess = |v: Real| (((v - o) / cell) as i64).clamp(0, i64::from(last)) as u32;
+    // Truncating guesses (`as` saturates: negative and NaN give 0).
+    let guess = |v: Real| (((v - o) * inv) as u32).min(last);
     // Each loop sits behind its first test so that the compiler does not turn it into
     // a vectorised search (which costs far more than the usual zero or one step).
     let mut a = guess(lo);
@@ -749,10 +812,10 @@ impl Layout {
     /// pass the three box-normal axes of the overlap test.
     #[inline]
     fn candidates_of_box(&self, bmin: Vec3, bmax: Vec3) -> Option<(UVec3, UVec3)> {
-        let g = &self.grid;
-        let (x0, x1) = cell_range_1d(g.origin.x, g.cell, g.resolution, bmin.x, bmax.x)?;
-        let (y0, y1) = cell_range_1d(g.origin.y, g.cell, g.resolution, bmin.y, bmax.y)?;
-        let (z0, z1) = cell_range_1d(g.origin.z, g.cell, g.resolution, bmin.z, bmax.z)?;
+        let (g, inv) = (&self.grid, self.inv_cell);
+        let (x0, x1) = cell_range_1d(g.origin.x, g.cell, inv, g.resolution, bmin.x, bmax.x)?;
+        let (y0, y1) = cell_range_1d(g.origin.y, g.cell, inv, g.resolution, bmin.y, bmax.y)?;
+        let (z0, z1) = cell_range_1d(g.origin.z, g.cell, inv, g.resolution, bmin.z, bmax.z)?;
         Some((UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1)))
     }
 
@@ -778,6 +841,10 @@ impl Region {
             free: [NONE; CLASSES.len()],
             cache_key: [u64::MAX; 8],
             cache_val: [NONE; 8],
+            dense: Vec::new(),
+            dense_mask: Vec::new(),
+            dense_brick: Vec::new(),
+            slot_of: Vec::new(),
         }
     }
 
@@ -786,6 +853,23 @@ impl Region {
             + self.nodes.capacity() * std::mem::size_of::<[u32; 8]>()
             + self.bricks.capacity() * std::mem::size_of::<Brick>()
             + self.payload.capacity() * std::mem::size_of::<Payload>()
+    }
+
+    /// [`insert`](Self::insert) within a batch: packs the expanded bricks first when
+    /// they take more than [`DENSE_LIMIT`] slots.
+    #[inline]
+    fn insert_batched(
+        &mut self,
+        lay: &Layout,
+        base: UVec3,
+        sat: &TriangleSat,
+        lo: UVec3,
+        hi: UVec3,
+    ) -> usize {
+        if self.dense.len() >= DENSE_LIMIT {
+            self.flush();
+        }
+        self.insert(lay, base, sat, lo, hi)
     }
 
     /// Marks the cells of `lo..=hi` (inside this region, whose first leaf is `base`)
@@ -840,7 +924,8 @@ impl Region {
         self.insert(lay, base, sat, lo, hi_a) + self.insert(lay, base, sat, lo_b, hi)
     }
 
-    /// [`insert`](Self::insert) for a block of at most 4×4×4 cells from `lo`.
+    /// [`insert`](Self::insert) for a block of at most 4×4×4 cells from `lo`: the
+    /// common case, triangles about the size of a leaf.
     #[inline]
     fn insert_small(
         &mut self,
@@ -850,18 +935,40 @@ impl Region {
         lo: UVec3,
         n: UVec3,
     ) -> usize {
-        let (mut mask, terms) = small_block(&lay.grid, sat, lo, n);
+        let g = &lay.grid;
+        let dims = [n.x as usize, n.y as usize, n.z as usize];
+        // The bounding-box axes hold for every cell of the candidate range; the planes
+        // are the very `f32` corners of `GridSpec::cell_aabb`, widened to f64.
+        // Padded to 2 or 4 cells per axis (finite further planes, their cells are
+        // dropped).
+        let planes: [[f64; 5]; 3] = std::array::from_fn(|a| {
+            std::array::from_fn(|t| f64::from(g.plane(a, lo[a] + t as u32)))
+        });
+        let mut mask = sat.block_mask(&planes, dims);
+        if mask == 0 {
+            return 0;
+        }
         let count = mask.count_ones() as usize;
-        // Per axis: brick coordinate and Morton bits of each cell of the block.
+        // Per axis and cell of the block: the sdf term (cell `(i, j, k)` has sdf
+        // `((terms[0][i] + terms[1][j]) + terms[2][k]) as f32`, bit for bit
+        // `TriangleSat::signed_distance` of `GridSpec::cell_center`), the part of the
+        // brick-cache key and way, and the Morton bits within the brick.
         let l0 = lo - base;
-        let mut bcs = [[0u32; 4]; 3];
+        let mut terms = [[0.0f64; 4]; 3];
+        let mut keys = [[0u64; 4]; 3];
+        let mut ways = [[0u32; 4]; 3];
         let mut bits = [[0u32; 4]; 3];
         for a in 0..3 {
-            for t in 0..4 {
-                let l = l0[a] + t as u32;
-                bcs[a][t] = l >> 2;
-                bits[a][t] = ((l & 1) | (l & 2) << 2) << a;
-            }
+            let (o, cell) = (g.origin[a], g.cell);
+            // The same expression as `GridSpec::cell_center`, component-wise
+            // (coordinates below 2^22 convert exactly from i32).
+            let c: [Real; 4] =
+                std::array::from_fn(|t| o + ((lo[a] + t as u32) as i32 as Real + 0.5) * cell);
+            terms[a] = std::array::from_fn(|t| sat.sdf_term(a, c[t]));
+            let l: [u32; 4] = std::array::from_fn(|t| l0[a] + t as u32);
+            keys[a] = std::array::from_fn(|t| u64::from(l[t] >> 2) << (21 * a));
+            ways[a] = std::array::from_fn(|t| ((l[t] >> 2) & 1) << a);
+            bits[a] = std::array::from_fn(|t| ((l[t] & 1) | (l[t] & 2) << 2) << a);
         }
         while mask != 0 {
             let bit = mask.trailing_zeros();
@@ -872,59 +979,105 @@ impl Region {
                 (bit >> 4) as usize,
             );
             let sdf = ((terms[0][i] + terms[1][j]) + terms[2][k]) as f32;
-            let bc = UVec3::new(bcs[0][i], bcs[1][j], bcs[2][k]);
-            let b = self.brick_at(bc, lay.levels);
-            self.add_known(b, bits[0][i] | bits[1][j] | bits[2][k], 1, sdf);
+            let key = keys[0][i] | keys[1][j] | keys[2][k];
+            let way = (ways[0][i] | ways[1][j] | ways[2][k]) as usize;
+            let slot = if self.cache_key[way] == key {
+                self.cache_val[way]
+            } else {
+                self.slot_miss(key, lay.levels, way)
+            };
+            self.add_dense(slot, bits[0][i] | bits[1][j] | bits[2][k], sdf);
         }
         count
     }
 
-    /// Adds to the leaf at region-local coordinates `local`.
-    #[inline(always)]
+    /// Adds to the leaf at region-local coordinates `local` (packed storage, outside
+    /// a batch).
     fn mark(&mut self, lay: &Layout, local: UVec3, hits: u32, sdf: f32) {
-        let b = self.brick_at(local >> 2, lay.levels);
-        self.add_known(b, morton2(local & UVec3::splat(3)), hits, sdf);
+        debug_assert!(self.dense.is_empty());
+        let b = self.find_or_create_brick(local >> 2, lay.levels);
+        self.add(b, morton2(local & UVec3::splat(3)), hits, sdf);
     }
 
-    /// [`add`](Self::add), with the common case inline: the leaf is already marked.
+    /// Adds one hit and `sdf` to bit `bit` of dense slot `slot`.
     #[inline(always)]
-    fn add_known(&mut self, b: u32, bit: u32, hits: u32, sdf: f32) {
-        let brick = self.bricks[b as usize];
-        let m = 1u64 << bit;
-        if brick.mask & m != 0 {
-            let rank = (brick.mask & (m - 1)).count_ones() as usize;
-            let p = &mut self.payload[brick.offset as usize + rank];
-            p.hits = p.hits.saturating_add(hits);
-            p.sdf += sdf;
+    fn add_dense(&mut self, slot: u32, bit: u32, sdf: f32) {
+        let p = &mut self.dense[slot as usize][bit as usize];
+        p.hits = p.hits.saturating_add(1);
+        p.sdf += sdf;
+        self.dense_mask[slot as usize] |= 1u64 << bit;
+    }
+
+    /// The dense slot of the brick whose coordinates `x | y << 21 | z << 42` are `key`
+    /// (cache way `way`) when the cache misses: the brick created and expanded when
+    /// needed.
+    #[inline(never)]
+    fn slot_miss(&mut self, key: u64, levels: u32, way: usize) -> u32 {
+        let m = (1 << 21) - 1;
+        let bc = UVec3::new((key & m) as u32, (key >> 21 & m) as u32, (key >> 42) as u32);
+        let b = self.find_or_create_brick(bc, levels);
+        if self.slot_of.len() < self.bricks.len() {
+            self.slot_of.resize(self.bricks.len(), NONE);
+        }
+        let mut slot = self.slot_of[b as usize];
+        if slot == NONE {
+            slot = self.dense.len() as u32;
+            let brick = self.bricks[b as usize];
+            let mut block = [Payload::default(); 64];
+            for (rank, bit) in BitIter(brick.mask).enumerate() {
+                block[bit as usize] = self.payload[brick.offset as usize + rank];
+            }
+            self.dense.push(block);
+            self.dense_mask.push(brick.mask);
+            self.dense_brick.push(b);
+            self.slot_of[b as usize] = slot;
+        }
+        self.cache_key[way] = key;
+        self.cache_val[way] = slot;
+        slot
+    }
+
+    /// Packs every dense slot back into its brick's payload block (a block of the
+    /// smallest class that fits when the old one is too small, the old one freed) and
+    /// ends the batch. The leaves and payloads are those of updating the packed storage
+    /// directly, in the same order.
+    fn flush(&mut self) {
+        if self.dense.is_empty() {
             return;
         }
-        self.add_new(b, bit, hits, sdf);
-    }
-
-    /// [`add`](Self::add) out of line, for a leaf not yet marked.
-    #[inline(never)]
-    fn add_new(&mut self, b: u32, bit: u32, hits: u32, sdf: f32) {
-        self.add(b, bit, hits, sdf);
-    }
-
-    /// The brick at brick coordinates `bc`, created when missing.
-    #[inline]
-    fn brick_at(&mut self, bc: UVec3, levels: u32) -> u32 {
-        let key = u64::from(bc.x) | u64::from(bc.y) << 21 | u64::from(bc.z) << 42;
-        let slot = ((bc.x & 1) | (bc.y & 1) << 1 | (bc.z & 1) << 2) as usize;
-        if self.cache_key[slot] == key {
-            return self.cache_val[slot];
+        for slot in 0..self.dense.len() {
+            let b = self.dense_brick[slot] as usize;
+            let mask = self.dense_mask[slot];
+            let brick = self.bricks[b];
+            let n = mask.count_ones();
+            let off = if brick.class != NO_BLOCK && CLASSES[brick.class as usize] >= n {
+                brick.offset as usize
+            } else {
+                let class = CLASSES
+                    .iter()
+                    .position(|&c| c >= n)
+                    .unwrap_or(CLASSES.len() - 1);
+                let off = self.alloc_block(class);
+                if brick.class != NO_BLOCK {
+                    self.free_block(brick.class as usize, brick.offset as usize);
+                }
+                let bk = &mut self.bricks[b];
+                bk.offset = off as u32;
+                bk.class = class as u8;
+                off
+            };
+            let block = &self.dense[slot];
+            for (rank, bit) in BitIter(mask).enumerate() {
+                self.payload[off + rank] = block[bit as usize];
+            }
+            self.bricks[b].mask = mask;
         }
-        self.brick_miss(bc, levels, slot, key)
-    }
-
-    /// [`brick_at`](Self::brick_at) when the cache misses.
-    #[inline(never)]
-    fn brick_miss(&mut self, bc: UVec3, levels: u32, slot: usize, key: u64) -> u32 {
-        let b = self.find_or_create_brick(bc, levels);
-        self.cache_key[slot] = key;
-        self.cache_val[slot] = b;
-        b
+        self.dense = Vec::new();
+        self.dense_mask = Vec::new();
+        self.dense_brick = Vec::new();
+        self.slot_of = Vec::new();
+        self.cache_key = [u64::MAX; 8];
+        self.cache_val = [NONE; 8];
     }
 
     fn new_brick(&mut self) -> u32 {
@@ -1088,35 +1241,18 @@ fn reserve_gently<T>(v: &mut Vec<T>, extra: usize) {
     }
 }
 
-/// The common case (triangles about the size of a leaf): the cells of a candidate
-/// block `lo .. lo + n` of at most 4×4×4 cells that the triangle overlaps, as bits
-/// `i + 4 j + 16 k`, and the per-axis terms of their sdf (cell `(i, j, k)` has sdf
-/// `((terms[0][i] + terms[1][j]) + terms[2][k]) as f32`, bit for bit
-/// [`TriangleSat::signed_distance`] of [`GridSpec::cell_center`]).
-#[inline]
-fn small_block(grid: &GridSpec, sat: &TriangleSat, lo: UVec3, n: UVec3) -> (u64, [[f64; 4]; 3]) {
-    // The bounding-box axes hold for every cell of the candidate range; the planes
-    // are the very `f32` corners of `GridSpec::cell_aabb`, widened to f64, padded
-    // with the last plane.
-    let dims = [n.x as usize, n.y as usize, n.z as usize];
-    let mut planes = [[0.0f64; 8]; 3];
-    let mut terms = [[0.0f64; 4]; 3];
-    for a in 0..3 {
-        for (t, p) in planes[a].iter_mut().enumerate().take(5) {
-            *p = f64::from(grid.plane(a, lo[a] + t.min(dims[a]) as u32));
-        }
-        for (t, term) in terms[a].iter_mut().enumerate().take(dims[a]) {
-            // The same expression as `GridSpec::cell_center`, component-wise.
-            let c = grid.origin[a] + ((lo[a] + t as u32) as Real + 0.5) * grid.cell;
-            *term = sat.sdf_term(a, c);
-        }
-    }
-    (sat.block4_mask(&planes, dims), terms)
-}
-
 #[inline]
 fn octant(bc: UVec3, level: u32) -> usize {
     (((bc.x >> level) & 1) | ((bc.y >> level) & 1) << 1 | ((bc.z >> level) & 1) << 2) as usize
+}
+
+/// Index of the region at region coordinates `rc` (each below `2^SPLIT_DEPTH`): their
+/// Morton code, by table.
+#[inline(always)]
+fn region_index(rc: UVec3) -> usize {
+    const SPREAD: [u16; 8] = [0, 1, 8, 9, 64, 65, 72, 73];
+    let s = |v: u32| usize::from(SPREAD[(v & 7) as usize]);
+    s(rc.x) | s(rc.y) << 1 | s(rc.z) << 2
 }
 
 /// Morton index of a 4×4×4 local coordinate (bits `z1 y1 x1 z0 y0 x0`).
