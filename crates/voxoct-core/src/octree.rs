@@ -423,14 +423,13 @@ impl Octree {
                         continue;
                     }
                     let bb = t.aabb();
-                    let Some((lo, hi)) = lay.candidates_of_box(bb.min, bb.max) else {
+                    let Some((rlo, rhi)) = lay.regions_near(bb.min, bb.max) else {
                         continue;
                     };
-                    let (rlo, rhi) = (lo >> lay.region_shift, hi >> lay.region_shift);
                     for rz in rlo.z..=rhi.z {
                         for ry in rlo.y..=rhi.y {
                             for rx in rlo.x..=rhi.x {
-                                lists[morton3(UVec3::new(rx, ry, rz)) as usize].push(i);
+                                lists[region_index(UVec3::new(rx, ry, rz))].push(i);
                             }
                         }
                     }
@@ -471,8 +470,13 @@ impl Octree {
                 if sat.is_degenerate() {
                     continue;
                 }
+                // The lists are a superset: the part of the candidates in this region
+                // may be empty.
                 if let Some((lo, hi)) = lay.candidates(&sat) {
-                    region.insert_batched(&lay, base, &sat, lo.max(base), hi.min(last));
+                    let (lo, hi) = (lo.max(base), hi.min(last));
+                    if lo.cmple(hi).all() {
+                        region.insert_batched(&lay, base, &sat, lo, hi);
+                    }
                 }
             }
             region.flush();
@@ -824,6 +828,34 @@ impl Layout {
         self.candidates_of_box(sat.bmin, sat.bmax)
     }
 
+    /// The regions (first and last region coordinates) that the candidate cells of
+    /// the box `bmin..=bmax` (finite) may reach: a superset, from truncated guesses
+    /// widened by two cells each way (they are within one cell of the exact ranges);
+    /// `None` only when the box is surely outside the root.
+    #[cfg(feature = "parallel")]
+    #[inline]
+    fn regions_near(&self, bmin: Vec3, bmax: Vec3) -> Option<(UVec3, UVec3)> {
+        let g = &self.grid;
+        let last = i64::from(g.resolution - 1);
+        let mut r = [(0u32, 0u32); 3];
+        for (a, r) in r.iter_mut().enumerate() {
+            // `as` saturates; the inputs are finite.
+            let guess = |v: Real| ((v - g.origin[a]) * self.inv_cell) as i64;
+            let (lo, hi) = (guess(bmin[a]) - 2, guess(bmax[a]) + 2);
+            if hi < 0 || lo > last {
+                return None;
+            }
+            *r = (
+                (lo.max(0) as u32) >> self.region_shift,
+                (hi.min(last) as u32) >> self.region_shift,
+            );
+        }
+        Some((
+            UVec3::new(r[0].0, r[1].0, r[2].0),
+            UVec3::new(r[0].1, r[1].1, r[2].1),
+        ))
+    }
+
     /// First and last leaf coordinates of region `rc`.
     #[inline]
     fn region_span(&self, rc: UVec3) -> (UVec3, UVec3) {
@@ -1023,11 +1055,11 @@ impl Region {
         if slot == NONE {
             slot = self.dense.len() as u32;
             let brick = self.bricks[b as usize];
-            let mut block = [Payload::default(); 64];
+            self.dense.push([Payload::default(); 64]);
+            let block = &mut self.dense[slot as usize];
             for (rank, bit) in BitIter(brick.mask).enumerate() {
                 block[bit as usize] = self.payload[brick.offset as usize + rank];
             }
-            self.dense.push(block);
             self.dense_mask.push(brick.mask);
             self.dense_brick.push(b);
             self.slot_of[b as usize] = slot;
