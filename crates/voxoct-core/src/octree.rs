@@ -997,10 +997,15 @@ impl Region {
             let c: [Real; 4] =
                 std::array::from_fn(|t| o + ((lo[a] + t as u32) as i32 as Real + 0.5) * cell);
             terms[a] = std::array::from_fn(|t| sat.sdf_term(a, c[t]));
-            let l: [u32; 4] = std::array::from_fn(|t| l0[a] + t as u32);
-            keys[a] = std::array::from_fn(|t| u64::from(l[t] >> 2) << (21 * a));
-            ways[a] = std::array::from_fn(|t| ((l[t] >> 2) & 1) << a);
-            bits[a] = std::array::from_fn(|t| ((l[t] & 1) | (l[t] & 2) << 2) << a);
+            // Cell `t` is in brick `(l0 >> 2) + carry` at position `(l0 & 3) + t` mod 4.
+            let (b0, r0) = (l0[a] >> 2, (l0[a] & 3) as usize);
+            let (kb, wb) = (u64::from(b0) << (21 * a), b0 & 1);
+            for t in 0..4 {
+                let (carry, r) = (CARRY[r0 + t], (r0 + t) & 3);
+                keys[a][t] = kb + (u64::from(carry) << (21 * a));
+                ways[a][t] = ((wb ^ carry) & 1) << a;
+                bits[a][t] = LOW_BITS[r] << a;
+            }
         }
         while mask != 0 {
             let bit = mask.trailing_zeros();
@@ -1277,6 +1282,11 @@ fn reserve_gently<T>(v: &mut Vec<T>, extra: usize) {
 fn octant(bc: UVec3, level: u32) -> usize {
     (((bc.x >> level) & 1) | ((bc.y >> level) & 1) << 1 | ((bc.z >> level) & 1) << 2) as usize
 }
+
+/// Whether position `r` (below 7) of a row starting inside a brick is in the next brick.
+const CARRY: [u32; 8] = [0, 0, 0, 0, 1, 1, 1, 1];
+/// The Morton bits (of the x axis) of position `r` (below 4) within a brick.
+const LOW_BITS: [u32; 4] = [0, 1, 8, 9];
 
 /// Index of the region at region coordinates `rc` (each below `2^SPLIT_DEPTH`): their
 /// Morton code, by table.
