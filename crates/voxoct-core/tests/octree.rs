@@ -197,6 +197,25 @@ proptest! {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(100))]
 
+    /// Batched insertion (bricks expanded for the batch, packed at its end) gives the
+    /// tree of inserting one triangle at a time, also when a batch continues leaves
+    /// of an earlier one.
+    #[test]
+    fn batches_equal_single_insertions(
+        tris in prop::collection::vec(triangle_for(&tree(5)), 1..60),
+        split in 0usize..60,
+    ) {
+        let mut single = tree(5);
+        for t in &tris {
+            single.insert(t);
+        }
+        let mut batched = tree(5);
+        let (a, b) = tris.split_at(split.min(tris.len()));
+        batched.insert_all(a);
+        batched.insert_all(b);
+        prop_assert_eq!(bits(&leaves(&batched)), bits(&leaves(&single)));
+    }
+
     #[cfg(feature = "parallel")]
     #[test]
     fn par_insert_equals_serial(
@@ -475,4 +494,42 @@ fn value_at_on_shared_faces() {
     assert!(t.get(UVec3::new(3, 1, 1)).is_none());
     assert_eq!(t.value_at(a + (b - a) * 0.25 + (c - a) * 0.25), 1.0);
     assert_eq!(t.value_at(g.cell_center(UVec3::new(5, 5, 5))), 0.0);
+}
+
+/// A batch that expands more bricks of one region than the batch keeps expanded at once
+/// (it packs them midway) gives the same tree as single insertions.
+#[test]
+fn large_batch_packs_midway() {
+    let new = || Octree::new(Vec3::ZERO, 1.0, 1.0 / 1024.0).unwrap();
+    let cell = 1.0 / 1024.0;
+    // Six planes z = const inside the first region (128 leaves wide), each tiled with
+    // triangles 4 leaves across: 6 × 1024 bricks.
+    let mut tris = Vec::new();
+    for plane in 0..6 {
+        let z = (plane as f32 * 20.0 + 2.5) * cell;
+        for j in 0..32 {
+            for i in 0..32 {
+                let (x, y) = (
+                    i as f32 * 4.0 * cell + 0.3 * cell,
+                    j as f32 * 4.0 * cell + 0.3 * cell,
+                );
+                let d = 3.4 * cell;
+                let p = |dx: f32, dy: f32| Vec3::new(x + dx, y + dy, z + 0.1 * dx);
+                tris.push(Triangle::new(p(0.0, 0.0), p(d, 0.0), p(0.0, d)));
+                tris.push(Triangle::new(p(d, 0.0), p(d, d), p(0.0, d)));
+            }
+        }
+    }
+    let mut batched = new();
+    batched.insert_all(&tris);
+    // Twice: the second batch adds to every leaf of the first.
+    batched.insert_all(&tris);
+    let mut single = new();
+    for t in tris.iter().chain(&tris) {
+        single.insert(t);
+    }
+    let b = leaves(&batched);
+    assert!(b.len() >= 6 * 1024 * 16, "{} leaves", b.len());
+    assert!(b.iter().all(|c| c.hits >= 2));
+    assert_eq!(bits(&b), bits(&leaves(&single)));
 }
