@@ -20,7 +20,10 @@ use crate::geometry::{Aabb, Triangle};
 /// separation that exact arithmetic would not find (touching is never missed on those
 /// axes), and it may report an overlap only across a gap of about one `f64` rounding
 /// (~1e-16 relative). The normal axis carries one or two more roundings, still far below
-/// `f32` resolution. No epsilon is added anywhere.
+/// `f32` resolution. No epsilon is added anywhere. (On an edge axis the triangle's
+/// interval is spanned by the edge's first vertex and the opposite one: the edge's two
+/// ends project to the same point exactly, so the second end adds nothing but a
+/// rounding.)
 ///
 /// The test is also *monotone*: if it accepts a box, it accepts every box containing it
 /// (same arithmetic, same rounding direction). The octree relies on this: pruning a

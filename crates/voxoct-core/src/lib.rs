@@ -48,11 +48,13 @@
 //! (2×2×2 such blocks up to 8 cells per axis; larger ranges are halved after testing
 //! the whole range's box, exact by the same monotonicity) and decides the ten other
 //! axes for all its cells at once with the very same `f64` products, sums and
-//! comparisons: each product once per grid plane and, since those sums are monotone in
-//! the cell index (so is `f64` rounding), an edge axis that does not separate the
-//! block's extreme cell is skipped, and where it does, only the run of separated cells
-//! at the end of each row is evaluated. A marked leaf's sdf is `(x + y) + z` of per-axis
-//! terms: the operations of the reference's dot product, in the same order.
+//! comparisons. The block is padded to 2 or 4 cells per axis so that every loop has a
+//! fixed length (the padding cells are dropped). An edge axis acts on two coordinates
+//! only, so it is decided once per column of cells, and since its sums are monotone in
+//! the cell index (so is `f64` rounding) an edge axis that does not separate the
+//! block's most exposed cell separates none and is not evaluated cell by cell. A marked
+//! leaf's sdf is `(x + y) + z` of per-axis terms: the operations of the reference's dot
+//! product, in the same order.
 //!
 //! # Storage
 //!
@@ -67,22 +69,31 @@
 //!   the order of the mask's set bits, in blocks of 2, 4, 6, 8, 12, … 64 entries that are
 //!   recycled through free lists when a brick grows; pools grow by ~25 %, not 100 %.
 //!
+//! An insertion call works on a scratch copy of the bricks it touches, each expanded to
+//! 64 payloads so that adding a triangle to a leaf is a plain add, and packs them back
+//! when it returns (or midway, past 4096 expanded bricks in a region, 2 MiB); the
+//! scratch is gone between calls, so the figures below are the resting size. A batch
+//! (`insert_all`, `extend`, `par_insert`) expands each brick once, which is why it is
+//! much faster per triangle than one `insert` call per triangle.
+//!
 //! Measured on the bench snapshot (a 640×480 depth image, f = 580 px, of a 7.5 cm-radius
 //! sphere at 0.7 m: 23 976 triangles with 1–2 mm edges; 1 m root, 1 mm leaf size →
-//! depth 10, 0.977 mm leaves): **43 762 leaves, 58 749 nodes, 556 744 bytes = 12.7 bytes
+//! depth 10, 0.977 mm leaves): **43 762 leaves, 58 749 nodes, 537 360 bytes = 12.3 bytes
 //! per marked leaf**, everything included (a pointer octree would need 64+ bytes per
 //! node).
 //!
-//! Speed (`cargo bench -p voxoct-core`, on a shared, loaded 2-core VM: the figures are
-//! CPU time of the working threads, wall time there is meaningless): the one-shot
-//! overlap test ~50 ns per call; serial insertion **~0.41 µs of CPU per triangle**,
-//! tree construction included (~3 760 instructions per triangle by callgrind, down from
-//! ~4 980: ~13 candidate cells and ~7 marked leaves per triangle; the exact `f64`
-//! block test is the largest part, then the payload updates and the per-triangle setup
-//! of the edge axes and candidate range); the reference descent is ~8× slower.
-//! `par_insert` partitions the triangles in parallel and does no measurable extra work;
-//! on the snapshot (4 equal regions) the busiest of 2 threads does 0.22 µs of CPU per
-//! triangle, so 2 threads give ~1.9× when each has a core of its own.
+//! Speed (`cargo bench -p voxoct-core`, on a shared 2-core VM whose speed drifts by
+//! ±20 % from minute to minute: the figures are CPU time of the working threads, and
+//! instruction counts by callgrind, which do not drift): the one-shot overlap test
+//! ~50 ns per call; serial `insert_all` **~0.23–0.26 µs of CPU per triangle**, tree
+//! construction included (~2 870 instructions per triangle, down from ~3 760 with one
+//! packed update per leaf: ~13 candidate cells and ~7 marked leaves per triangle; the
+//! exact `f64` block test is about a third, the per-triangle setup of the edge axes and
+//! candidate range, the payload updates and the bricks' expansion the rest); one
+//! `insert` call per triangle ~0.5 µs; the reference descent ~13× slower than
+//! `insert_all`. `par_insert` partitions the triangles in parallel (~6 % more
+//! instructions in all); on the snapshot (4 equal regions) the busiest of 2 threads
+//! does 0.17 µs of CPU per triangle, about half the work of one.
 //!
 //! # Example
 //!
