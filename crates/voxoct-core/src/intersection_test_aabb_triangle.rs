@@ -323,7 +323,7 @@ impl TriangleSat {
         // choices of `span`), summed as in `normal_passes`.
         let ends = |a: usize, i: usize| {
             let (p0, p1) = (self.n[a] * planes[a][i], self.n[a] * planes[a][i + 1]);
-            if self.n[a] >= 0.0 { (p0, p1) } else { (p1, p0) }
+            (min(p0, p1), max(p0, p1))
         };
         let ex: [(f64, f64); NX] = std::array::from_fn(|i| ends(0, i));
         let ey: [(f64, f64); NY] = std::array::from_fn(|j| ends(1, j));
@@ -359,31 +359,27 @@ impl TriangleSat {
         let mut sep = 0u32;
         for e in 0..3 {
             let (a, b, lo, hi) = (self.ea[u][e], self.eb[u][e], self.elo[u][e], self.ehi[u][e]);
-            // `span`'s choices: cell `p` spans `a * ps[p + sa]` (low end) to
-            // `a * ps[p + 1 - sa]` (high end).
-            let sa = usize::from(a < 0.0);
-            let sb = usize::from(b < 0.0);
+            // `span`'s choices are the smaller and the larger product of a cell's two
+            // planes: cell `p` spans `min(pa[p], pa[p + 1])..=max(..)`.
+            let pa: [f64; 5] = std::array::from_fn(|t| if t <= NP { a * ps[t] } else { 0.0 });
+            let pb: [f64; 5] = std::array::from_fn(|t| if t <= NQ { b * qs[t] } else { 0.0 });
             // The cells most likely separated: the largest low end and the smallest
-            // high end of the block's cells.
-            let (ia, ib) = (
-                if sa == 0 { NP - 1 } else { 1 },
-                if sb == 0 { NQ - 1 } else { 1 },
-            );
-            let low = hi < a * ps[ia] + b * qs[ib];
-            let high = lo > a * ps[NP - ia] + b * qs[NQ - ib];
+            // high end of the block's cells (planes 1 and N - 1, whatever the signs).
+            let low = hi < max(pa[1], pa[NP - 1]) + max(pb[1], pb[NQ - 1]);
+            let high = lo > min(pa[1], pa[NP - 1]) + min(pb[1], pb[NQ - 1]);
             if low {
                 for q in 0..NQ {
-                    let lb = b * qs[q + sb];
+                    let lb = min(pb[q], pb[q + 1]);
                     for p in 0..NP {
-                        sep |= u32::from(hi < a * ps[p + sa] + lb) << (4 * q + p);
+                        sep |= u32::from(hi < min(pa[p], pa[p + 1]) + lb) << (4 * q + p);
                     }
                 }
             }
             if high {
                 for q in 0..NQ {
-                    let hb = b * qs[q + 1 - sb];
+                    let hb = max(pb[q], pb[q + 1]);
                     for p in 0..NP {
-                        sep |= u32::from(lo > a * ps[p + 1 - sa] + hb) << (4 * q + p);
+                        sep |= u32::from(lo > max(pa[p], pa[p + 1]) + hb) << (4 * q + p);
                     }
                 }
             }
@@ -406,6 +402,18 @@ impl TriangleSat {
             && edge_passes(ea[1], eb[1], elo[1], ehi[1], p0, p1, q0, q1)
             && edge_passes(ea[2], eb[2], elo[2], ehi[2], p0, p1, q0, q1)
     }
+}
+
+/// The smaller of two numbers (neither NaN here; either when equal).
+#[inline(always)]
+fn min(x: f64, y: f64) -> f64 {
+    if x < y { x } else { y }
+}
+
+/// The larger of two numbers (neither NaN here; either when equal).
+#[inline(always)]
+fn max(x: f64, y: f64) -> f64 {
+    if x > y { x } else { y }
 }
 
 /// Bit `b` of a 16-bit mask to bit `4 b`.
