@@ -29,6 +29,15 @@ struct Payload {
     sdf: f32,
 }
 
+/// A brick expanded for an insertion batch: its 64 leaves' payloads in place.
+#[derive(Debug, Clone)]
+struct DenseBrick {
+    cells: [Payload; 64],
+    mask: u64,
+    /// The brick's index.
+    brick: u32,
+}
+
 /// 4×4×4 leaves: occupancy bits in Morton order and a packed payload block.
 #[derive(Debug, Clone, Copy)]
 struct Brick {
@@ -58,11 +67,7 @@ struct Region {
     /// Bricks being written by an insertion batch, expanded to 64 payloads each so that
     /// an update is a plain add; packed back by [`Region::flush`] at the end of every
     /// public method (outside a batch these are empty).
-    dense: Vec<[Payload; 64]>,
-    /// Occupancy mask of each dense slot.
-    dense_mask: Vec<u64>,
-    /// Brick of each dense slot.
-    dense_brick: Vec<u32>,
+    dense: Vec<DenseBrick>,
     /// Dense slot of each brick ([`NONE`] when not expanded); empty outside a batch.
     slot_of: Vec<u32>,
 }
@@ -874,8 +879,6 @@ impl Region {
             cache_key: [u64::MAX; 8],
             cache_val: [NONE; 8],
             dense: Vec::new(),
-            dense_mask: Vec::new(),
-            dense_brick: Vec::new(),
             slot_of: Vec::new(),
         }
     }
@@ -1017,7 +1020,7 @@ impl Region {
             );
             let sdf = ((terms[0][i] + terms[1][j]) + terms[2][k]) as f32;
             let key = keys[0][i] | keys[1][j] | keys[2][k];
-            let way = (ways[0][i] | ways[1][j] | ways[2][k]) as usize;
+            let way = ((ways[0][i] | ways[1][j] | ways[2][k]) & 7) as usize;
             let slot = if self.cache_key[way] == key {
                 self.cache_val[way]
             } else {
@@ -1039,10 +1042,11 @@ impl Region {
     /// Adds one hit and `sdf` to bit `bit` of dense slot `slot`.
     #[inline(always)]
     fn add_dense(&mut self, slot: u32, bit: u32, sdf: f32) {
-        let p = &mut self.dense[slot as usize][bit as usize];
+        let d = &mut self.dense[slot as usize];
+        let p = &mut d.cells[(bit & 63) as usize];
         p.hits = p.hits.saturating_add(1);
         p.sdf += sdf;
-        self.dense_mask[slot as usize] |= 1u64 << bit;
+        d.mask |= 1u64 << (bit & 63);
     }
 
     /// The dense slot of the brick whose coordinates `x | y << 21 | z << 42` are `key`
@@ -1060,13 +1064,15 @@ impl Region {
         if slot == NONE {
             slot = self.dense.len() as u32;
             let brick = self.bricks[b as usize];
-            self.dense.push([Payload::default(); 64]);
-            let block = &mut self.dense[slot as usize];
+            self.dense.push(DenseBrick {
+                cells: [Payload::default(); 64],
+                mask: brick.mask,
+                brick: b,
+            });
+            let block = &mut self.dense[slot as usize].cells;
             for (rank, bit) in BitIter(brick.mask).enumerate() {
                 block[bit as usize] = self.payload[brick.offset as usize + rank];
             }
-            self.dense_mask.push(brick.mask);
-            self.dense_brick.push(b);
             self.slot_of[b as usize] = slot;
         }
         self.cache_key[way] = key;
@@ -1083,8 +1089,7 @@ impl Region {
             return;
         }
         for slot in 0..self.dense.len() {
-            let b = self.dense_brick[slot] as usize;
-            let mask = self.dense_mask[slot];
+            let (b, mask) = (self.dense[slot].brick as usize, self.dense[slot].mask);
             let brick = self.bricks[b];
             let n = mask.count_ones();
             let off = if brick.class != NO_BLOCK && CLASSES[brick.class as usize] >= n {
@@ -1103,15 +1108,13 @@ impl Region {
                 bk.class = class as u8;
                 off
             };
-            let block = &self.dense[slot];
+            let block = &self.dense[slot].cells;
             for (rank, bit) in BitIter(mask).enumerate() {
                 self.payload[off + rank] = block[bit as usize];
             }
             self.bricks[b].mask = mask;
         }
         self.dense = Vec::new();
-        self.dense_mask = Vec::new();
-        self.dense_brick = Vec::new();
         self.slot_of = Vec::new();
         self.cache_key = [u64::MAX; 8];
         self.cache_val = [NONE; 8];
