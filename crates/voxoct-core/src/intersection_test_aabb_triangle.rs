@@ -287,16 +287,37 @@ impl TriangleSat {
         const LAYER: [u64; 5] = [0, 0x1, 0x1_0001, 0x1_0001_0001, 0x1_0001_0001_0001];
         let [nx, ny, nz] = dims;
         let valid = ((1u64 << nx) - 1) * ROW[ny] * LAYER[nz];
-        // Fixed sizes (2 or 4 per axis), so that every loop unrolls.
-        let m = match (nx > 2, ny > 2, nz > 2) {
-            (false, false, false) => self.block_mask_n::<2, 2, 2>(planes),
-            (false, false, true) => self.block_mask_n::<2, 2, 4>(planes),
-            (false, true, false) => self.block_mask_n::<2, 4, 2>(planes),
-            (false, true, true) => self.block_mask_n::<2, 4, 4>(planes),
-            (true, false, false) => self.block_mask_n::<4, 2, 2>(planes),
-            (true, false, true) => self.block_mask_n::<4, 2, 4>(planes),
-            (true, true, false) => self.block_mask_n::<4, 4, 2>(planes),
-            (true, true, true) => self.block_mask_n::<4, 4, 4>(planes),
+        // Fixed sizes (2, 3 or 4 per axis), so that every loop unrolls.
+        let size = |n: usize| n.clamp(2, 4);
+        let m = match (size(nx), size(ny), size(nz)) {
+            (2, 2, 2) => self.block_mask_n::<2, 2, 2>(planes),
+            (2, 2, 3) => self.block_mask_n::<2, 2, 3>(planes),
+            (2, 2, 4) => self.block_mask_n::<2, 2, 4>(planes),
+            (2, 3, 2) => self.block_mask_n::<2, 3, 2>(planes),
+            (2, 3, 3) => self.block_mask_n::<2, 3, 3>(planes),
+            (2, 3, 4) => self.block_mask_n::<2, 3, 4>(planes),
+            (2, 4, 2) => self.block_mask_n::<2, 4, 2>(planes),
+            (2, 4, 3) => self.block_mask_n::<2, 4, 3>(planes),
+            (2, 4, 4) => self.block_mask_n::<2, 4, 4>(planes),
+            (3, 2, 2) => self.block_mask_n::<3, 2, 2>(planes),
+            (3, 2, 3) => self.block_mask_n::<3, 2, 3>(planes),
+            (3, 2, 4) => self.block_mask_n::<3, 2, 4>(planes),
+            (3, 3, 2) => self.block_mask_n::<3, 3, 2>(planes),
+            (3, 3, 3) => self.block_mask_n::<3, 3, 3>(planes),
+            (3, 3, 4) => self.block_mask_n::<3, 3, 4>(planes),
+            (3, 4, 2) => self.block_mask_n::<3, 4, 2>(planes),
+            (3, 4, 3) => self.block_mask_n::<3, 4, 3>(planes),
+            (3, 4, 4) => self.block_mask_n::<3, 4, 4>(planes),
+            (4, 2, 2) => self.block_mask_n::<4, 2, 2>(planes),
+            (4, 2, 3) => self.block_mask_n::<4, 2, 3>(planes),
+            (4, 2, 4) => self.block_mask_n::<4, 2, 4>(planes),
+            (4, 3, 2) => self.block_mask_n::<4, 3, 2>(planes),
+            (4, 3, 3) => self.block_mask_n::<4, 3, 3>(planes),
+            (4, 3, 4) => self.block_mask_n::<4, 3, 4>(planes),
+            (4, 4, 2) => self.block_mask_n::<4, 4, 2>(planes),
+            (4, 4, 3) => self.block_mask_n::<4, 4, 3>(planes),
+            (4, 4, 4) => self.block_mask_n::<4, 4, 4>(planes),
+            _ => 0, // unreachable: the sizes are 2, 3 or 4
         };
         m & valid
     }
