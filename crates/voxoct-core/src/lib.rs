@@ -78,22 +78,23 @@
 //!
 //! Measured on the bench snapshot (a 640×480 depth image, f = 580 px, of a 7.5 cm-radius
 //! sphere at 0.7 m: 23 976 triangles with 1–2 mm edges; 1 m root, 1 mm leaf size →
-//! depth 10, 0.977 mm leaves): **43 762 leaves, 58 749 nodes, 537 360 bytes = 12.3 bytes
+//! depth 10, 0.977 mm leaves): **43 762 leaves, 58 749 nodes, 537 168 bytes = 12.3 bytes
 //! per marked leaf**, everything included (a pointer octree would need 64+ bytes per
 //! node).
 //!
 //! Speed (`cargo bench -p voxoct-core`, on a shared 2-core VM whose speed drifts by
-//! ±20 % from minute to minute: the figures are CPU time of the working threads, and
-//! instruction counts by callgrind, which do not drift): the one-shot overlap test
-//! ~50 ns per call; serial `insert_all` **~0.23–0.26 µs of CPU per triangle**, tree
-//! construction included (~2 870 instructions per triangle, down from ~3 760 with one
-//! packed update per leaf: ~13 candidate cells and ~7 marked leaves per triangle; the
-//! exact `f64` block test is about a third, the per-triangle setup of the edge axes and
-//! candidate range, the payload updates and the bricks' expansion the rest); one
-//! `insert` call per triangle ~0.5 µs; the reference descent ~13× slower than
-//! `insert_all`. `par_insert` partitions the triangles in parallel (~6 % more
-//! instructions in all); on the snapshot (4 equal regions) the busiest of 2 threads
-//! does 0.17 µs of CPU per triangle, about half the work of one.
+//! up to 50 % from minute to minute: the figures are CPU time of the working threads,
+//! and instruction counts by callgrind, which do not drift): the one-shot overlap test
+//! 48–72 ns per call; serial `insert_all` **~2 590 instructions per triangle, 0.20–0.26
+//! µs of CPU in calm minutes** (0.33 µs in busy ones), tree construction included (down
+//! from ~3 760 instructions and 0.41 µs with one packed update per leaf). Per triangle
+//! there are ~13 candidate cells and ~7 marked leaves; ~1 030 instructions go to the
+//! setup of the edge axes, the candidate range and the dispatch, ~750 to the exact
+//! block test and ~800 to the payload updates and the bricks' expansion. One `insert`
+//! call per triangle costs ~0.5 µs; the reference descent ~3 µs. `par_insert`
+//! partitions the triangles in parallel (~6 % more instructions in all); on the
+//! snapshot (4 equal regions) the busiest of 2 threads does about half the work of one
+//! (0.17–0.22 µs of CPU per triangle).
 //!
 //! # Example
 //!
