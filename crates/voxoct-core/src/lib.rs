@@ -69,12 +69,11 @@
 //!   the order of the mask's set bits, in blocks of 2, 4, 6, 8, 12, … 64 entries that are
 //!   recycled through free lists when a brick grows; pools grow by ~25 %, not 100 %.
 //!
-//! An insertion call works on a scratch copy of the bricks it touches, each expanded to
-//! 64 payloads so that adding a triangle to a leaf is a plain add, and packs them back
-//! when it returns (or midway, past 4096 expanded bricks in a region, 2 MiB); the
-//! scratch is gone between calls, so the figures below are the resting size. A batch
-//! (`insert_all`, `extend`, `par_insert`) expands each brick once, which is why it is
-//! much faster per triangle than one `insert` call per triangle.
+//! A batch (`insert_all`, `extend`, `par_insert`) works on a scratch copy of the bricks
+//! it touches, each expanded to 64 payloads so that adding a triangle to a leaf is a
+//! plain add, and packs them back when it returns (or midway, past 4096 expanded bricks
+//! in a region, 2 MiB); the scratch is gone between calls, so the figures below are the
+//! resting size. A single `insert` writes straight into the packed storage.
 //!
 //! Measured on the bench snapshot (a 640×480 depth image, f = 580 px, of a 7.5 cm-radius
 //! sphere at 0.7 m: 23 976 triangles with 1–2 mm edges; 1 m root, 1 mm leaf size →
@@ -91,10 +90,10 @@
 //! there are ~13 candidate cells and ~7 marked leaves; ~1 030 instructions go to the
 //! setup of the edge axes, the candidate range and the dispatch, ~750 to the exact
 //! block test and ~800 to the payload updates and the bricks' expansion. One `insert`
-//! call per triangle costs ~0.5 µs; the reference descent ~3 µs. `par_insert`
-//! partitions the triangles in parallel (~6 % more instructions in all); on the
-//! snapshot (4 equal regions) the busiest of 2 threads does about half the work of one
-//! (0.17–0.22 µs of CPU per triangle).
+//! call per triangle (straight into the packed storage) costs ~0.28 µs; the reference
+//! descent ~3 µs. `par_insert` partitions the triangles in parallel (~6 % more
+//! instructions in all); on the snapshot (4 equal regions) the busiest of 2 threads
+//! does about half the work of one (0.17–0.22 µs of CPU per triangle).
 //!
 //! # Example
 //!

@@ -64,6 +64,10 @@ struct Region {
     /// brick coordinates' parity so that neighbouring bricks never evict each other.
     cache_key: [u64; 8],
     cache_val: [u32; 8],
+    /// The same for the bricks' indices, for insertion straight into the packed storage
+    /// (always valid: bricks are never removed).
+    brick_key: [u64; 8],
+    brick_val: [u32; 8],
     /// Bricks being written by an insertion batch, expanded to 64 payloads each so that
     /// an update is a plain add; packed back by [`Region::flush`] at the end of every
     /// public method (outside a batch these are empty).
@@ -316,18 +320,23 @@ impl Octree {
     /// Returns how many leaves it overlapped (already marked ones included).
     ///
     /// Degenerate triangles (zero area) and triangles with a non-finite coordinate mark
-    /// nothing and return 0; parts outside the root are ignored. For many triangles,
-    /// [`insert_all`](Self::insert_all) is faster (it packs the touched bricks once,
-    /// at the end).
+    /// nothing and return 0; parts outside the root are ignored. This writes straight
+    /// into the packed storage; for many triangles [`insert_all`](Self::insert_all) is
+    /// faster (it expands the touched bricks once and packs them at the end).
     pub fn insert(&mut self, tri: &Triangle) -> usize {
-        let count = self.insert_unflushed(tri);
-        self.flush();
-        count
+        self.insert_with::<false>(tri)
     }
 
     /// [`insert`](Self::insert) without packing the touched bricks: a batch in progress.
     #[inline]
     fn insert_unflushed(&mut self, tri: &Triangle) -> usize {
+        self.insert_with::<true>(tri)
+    }
+
+    /// [`insert`](Self::insert) into expanded bricks (`DENSE`, a batch in progress:
+    /// [`flush`](Self::flush) ends it) or straight into the packed storage.
+    #[inline]
+    fn insert_with<const DENSE: bool>(&mut self, tri: &Triangle) -> usize {
         if !tri.is_finite() {
             return 0;
         }
@@ -344,10 +353,10 @@ impl Octree {
             // The common case: one region.
             let ri = region_index(rlo);
             let region = self.regions[ri].get_or_insert_with(|| Box::new(Region::new()));
-            if region.dense.is_empty() {
+            if DENSE && region.dense.is_empty() {
                 self.dirty.push(ri as u32);
             }
-            return region.insert_batched(&lay, rlo << lay.region_shift, &sat, lo, hi);
+            return region.insert_batched::<DENSE>(&lay, rlo << lay.region_shift, &sat, lo, hi);
         }
         let mut count = 0;
         for rz in rlo.z..=rhi.z {
@@ -357,10 +366,16 @@ impl Octree {
                     let ri = region_index(rc);
                     let (base, last) = lay.region_span(rc);
                     let region = self.regions[ri].get_or_insert_with(|| Box::new(Region::new()));
-                    if region.dense.is_empty() {
+                    if DENSE && region.dense.is_empty() {
                         self.dirty.push(ri as u32);
                     }
-                    count += region.insert_batched(&lay, base, &sat, lo.max(base), hi.min(last));
+                    count += region.insert_batched::<DENSE>(
+                        &lay,
+                        base,
+                        &sat,
+                        lo.max(base),
+                        hi.min(last),
+                    );
                 }
             }
         }
@@ -480,7 +495,7 @@ impl Octree {
                 if let Some((lo, hi)) = lay.candidates(&sat) {
                     let (lo, hi) = (lo.max(base), hi.min(last));
                     if lo.cmple(hi).all() {
-                        region.insert_batched(&lay, base, &sat, lo, hi);
+                        region.insert_batched::<true>(&lay, base, &sat, lo, hi);
                     }
                 }
             }
@@ -878,6 +893,8 @@ impl Region {
             free: [NONE; CLASSES.len()],
             cache_key: [u64::MAX; 8],
             cache_val: [NONE; 8],
+            brick_key: [u64::MAX; 8],
+            brick_val: [NONE; 8],
             dense: Vec::new(),
             slot_of: Vec::new(),
         }
@@ -893,7 +910,7 @@ impl Region {
     /// [`insert`](Self::insert) within a batch: packs the expanded bricks first when
     /// they take more than [`DENSE_LIMIT`] slots.
     #[inline]
-    fn insert_batched(
+    fn insert_batched<const DENSE: bool>(
         &mut self,
         lay: &Layout,
         base: UVec3,
@@ -901,15 +918,15 @@ impl Region {
         lo: UVec3,
         hi: UVec3,
     ) -> usize {
-        if self.dense.len() >= DENSE_LIMIT {
+        if DENSE && self.dense.len() >= DENSE_LIMIT {
             self.flush();
         }
-        self.insert(lay, base, sat, lo, hi)
+        self.insert::<DENSE>(lay, base, sat, lo, hi)
     }
 
     /// Marks the cells of `lo..=hi` (inside this region, whose first leaf is `base`)
     /// that the triangle overlaps; returns how many.
-    fn insert(
+    fn insert<const DENSE: bool>(
         &mut self,
         lay: &Layout,
         base: UVec3,
@@ -919,7 +936,7 @@ impl Region {
     ) -> usize {
         let n = hi - lo + UVec3::ONE;
         if n.max_element() <= 4 {
-            return self.insert_small(lay, base, sat, lo, n);
+            return self.insert_small::<DENSE>(lay, base, sat, lo, n);
         }
         if n.max_element() <= 8 {
             // Up to 2×2×2 blocks of the 4×4×4 path, not tested as wholes.
@@ -930,7 +947,8 @@ impl Region {
                         let a = lo + UVec3::new(tx, ty, tz) * 4;
                         if a.cmple(hi).all() {
                             let b = hi.min(a + UVec3::splat(3));
-                            count += self.insert_small(lay, base, sat, a, b - a + UVec3::ONE);
+                            count +=
+                                self.insert_small::<DENSE>(lay, base, sat, a, b - a + UVec3::ONE);
                         }
                     }
                 }
@@ -956,13 +974,14 @@ impl Region {
         hi_a[axis] = mid - 1;
         let mut lo_b = lo;
         lo_b[axis] = mid;
-        self.insert(lay, base, sat, lo, hi_a) + self.insert(lay, base, sat, lo_b, hi)
+        self.insert::<DENSE>(lay, base, sat, lo, hi_a)
+            + self.insert::<DENSE>(lay, base, sat, lo_b, hi)
     }
 
     /// [`insert`](Self::insert) for a block of at most 4×4×4 cells from `lo`: the
     /// common case, triangles about the size of a leaf.
     #[inline]
-    fn insert_small(
+    fn insert_small<const DENSE: bool>(
         &mut self,
         lay: &Layout,
         base: UVec3,
@@ -1021,12 +1040,22 @@ impl Region {
             let sdf = ((terms[0][i] + terms[1][j]) + terms[2][k]) as f32;
             let key = keys[0][i] | keys[1][j] | keys[2][k];
             let way = ((ways[0][i] | ways[1][j] | ways[2][k]) & 7) as usize;
-            let slot = if self.cache_key[way] == key {
-                self.cache_val[way]
+            let bit = bits[0][i] | bits[1][j] | bits[2][k];
+            if DENSE {
+                let slot = if self.cache_key[way] == key {
+                    self.cache_val[way]
+                } else {
+                    self.slot_miss(key, lay.levels, way)
+                };
+                self.add_dense(slot, bit, sdf);
             } else {
-                self.slot_miss(key, lay.levels, way)
-            };
-            self.add_dense(slot, bits[0][i] | bits[1][j] | bits[2][k], sdf);
+                let b = if self.brick_key[way] == key {
+                    self.brick_val[way]
+                } else {
+                    self.brick_miss(key, lay.levels, way)
+                };
+                self.add_known(b, bit, sdf);
+            }
         }
         count
     }
@@ -1037,6 +1066,38 @@ impl Region {
         debug_assert!(self.dense.is_empty());
         let b = self.find_or_create_brick(local >> 2, lay.levels);
         self.add(b, morton2(local & UVec3::splat(3)), hits, sdf);
+    }
+
+    /// One hit and `sdf` added to bit `bit` of brick `b` in the packed storage, the
+    /// common case inline: the leaf is already marked.
+    #[inline(always)]
+    fn add_known(&mut self, b: u32, bit: u32, sdf: f32) {
+        let brick = self.bricks[b as usize];
+        let m = 1u64 << (bit & 63);
+        if brick.mask & m != 0 {
+            let rank = (brick.mask & (m - 1)).count_ones() as usize;
+            let p = &mut self.payload[brick.offset as usize + rank];
+            p.hits = p.hits.saturating_add(1);
+            p.sdf += sdf;
+            return;
+        }
+        self.add_new(b, bit, sdf);
+    }
+
+    /// [`add_known`](Self::add_known) out of line, for a leaf not yet marked.
+    #[inline(never)]
+    fn add_new(&mut self, b: u32, bit: u32, sdf: f32) {
+        self.add(b, bit, 1, sdf);
+    }
+
+    /// The brick whose coordinates `x | y << 21 | z << 42` are `key` (cache way
+    /// `way`) when the packed path's cache misses, created when missing.
+    #[inline(never)]
+    fn brick_miss(&mut self, key: u64, levels: u32, way: usize) -> u32 {
+        let b = self.find_or_create_brick(brick_coords(key), levels);
+        self.brick_key[way] = key;
+        self.brick_val[way] = b;
+        b
     }
 
     /// Adds one hit and `sdf` to bit `bit` of dense slot `slot`.
@@ -1054,9 +1115,7 @@ impl Region {
     /// needed.
     #[inline(never)]
     fn slot_miss(&mut self, key: u64, levels: u32, way: usize) -> u32 {
-        let m = (1 << 21) - 1;
-        let bc = UVec3::new((key & m) as u32, (key >> 21 & m) as u32, (key >> 42) as u32);
-        let b = self.find_or_create_brick(bc, levels);
+        let b = self.find_or_create_brick(brick_coords(key), levels);
         if self.slot_of.len() < self.bricks.len() {
             self.slot_of.resize(self.bricks.len(), NONE);
         }
@@ -1290,6 +1349,13 @@ fn octant(bc: UVec3, level: u32) -> usize {
 const CARRY: [u32; 8] = [0, 0, 0, 0, 1, 1, 1, 1];
 /// The Morton bits (of the x axis) of position `r` (below 4) within a brick.
 const LOW_BITS: [u32; 4] = [0, 1, 8, 9];
+
+/// The brick coordinates of a brick-cache key `x | y << 21 | z << 42`.
+#[inline]
+fn brick_coords(key: u64) -> UVec3 {
+    let m = (1 << 21) - 1;
+    UVec3::new((key & m) as u32, (key >> 21 & m) as u32, (key >> 42) as u32)
+}
 
 /// Index of the region at region coordinates `rc` (each below `2^SPLIT_DEPTH`): their
 /// Morton code, by table.
