@@ -279,8 +279,9 @@ impl TriangleSat {
     /// by cell: the very same products, sums and comparisons. An edge axis acts on a
     /// pair of coordinates only, so it is decided once per column of cells; and since
     /// the sums are monotone in the cell index (so is `f64` rounding), an edge axis that
-    /// does not separate the block's extreme cell separates none of its cells and is
-    /// not evaluated cell by cell.
+    /// does not separate the block's most exposed cells (the largest low end and the
+    /// smallest high end of a cell's projection) separates none and is not evaluated
+    /// cell by cell.
     #[inline]
     pub(crate) fn block_mask(&self, planes: &[[f64; 5]; 3], dims: [usize; 3]) -> u64 {
         const ROW: [u64; 5] = [0, 0x1, 0x11, 0x111, 0x1111];

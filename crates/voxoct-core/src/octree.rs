@@ -644,7 +644,8 @@ impl Octree {
         }
         let mut ranges = [(0u32, 0u32); 3];
         for (a, range) in ranges.iter_mut().enumerate() {
-            match cell_range_1d(g.origin[a], g.cell, 1.0 / g.cell, g.resolution, p[a], p[a]) {
+            let inv = self.layout.inv_cell;
+            match cell_range_1d(g.origin[a], g.cell, inv, g.resolution, p[a], p[a]) {
                 Some(r) => *range = r,
                 None => return 0.0,
             }
@@ -907,8 +908,8 @@ impl Region {
             + self.payload.capacity() * std::mem::size_of::<Payload>()
     }
 
-    /// [`insert`](Self::insert) within a batch: packs the expanded bricks first when
-    /// they take more than [`DENSE_LIMIT`] slots.
+    /// [`insert`](Self::insert) of one triangle; in a batch (`DENSE`) first packs the
+    /// expanded bricks when they take more than [`DENSE_LIMIT`] slots.
     #[inline]
     fn insert_batched<const DENSE: bool>(
         &mut self,
@@ -992,9 +993,9 @@ impl Region {
         let g = &lay.grid;
         let dims = [n.x as usize, n.y as usize, n.z as usize];
         // The bounding-box axes hold for every cell of the candidate range; the planes
-        // are the very `f32` corners of `GridSpec::cell_aabb`, widened to f64.
-        // Padded to 2 or 4 cells per axis (finite further planes, their cells are
-        // dropped).
+        // are the very `f32` corners of `GridSpec::cell_aabb`, widened to f64, and
+        // further (finite) planes up to 4 cells: `block_mask` evaluates blocks of fixed
+        // sizes and drops the padding cells.
         let planes: [[f64; 5]; 3] = std::array::from_fn(|a| {
             std::array::from_fn(|t| f64::from(g.plane(a, lo[a] + t as u32)))
         });
