@@ -122,7 +122,7 @@ fn edge_axis(u: usize, i: usize, ed: DVec3, v: &[DVec3; 3]) -> (f64, f64, f64, f
             (ps, po) = (a * s.x + b * s.y, a * o.x + b * o.y);
         }
     }
-    let (lo, hi) = if ps < po { (ps, po) } else { (po, ps) };
+    let (lo, hi) = ends(ps, po);
     (a, b, lo, hi)
 }
 
@@ -144,14 +144,18 @@ fn edge_passes(a: f64, b: f64, lo: f64, hi: f64, p0: f64, p1: f64, q0: f64, q1: 
     !(hi < la + lb || lo > ha + hb)
 }
 
-/// The lower and upper ends of `a * [mn, mx]`.
+/// The lower and upper ends of `a * [mn, mx]`: the smaller and the larger of the two
+/// products (the one definition every test of the crate uses, cell by cell or for a
+/// block of cells at once).
 #[inline(always)]
 fn span(a: f64, mn: f64, mx: f64) -> (f64, f64) {
-    if a >= 0.0 {
-        (a * mn, a * mx)
-    } else {
-        (a * mx, a * mn)
-    }
+    ends(a * mn, a * mx)
+}
+
+/// `(min, max)` of two numbers (neither NaN here; either when equal).
+#[inline(always)]
+fn ends(x: f64, y: f64) -> (f64, f64) {
+    if x < y { (x, y) } else { (y, x) }
 }
 
 /// A triangle prepared for many box tests: axes and projections computed once.
@@ -341,15 +345,11 @@ impl TriangleSat {
         let edges = (spread_nibbles(yz) * 0xf)
             & (spread_rows(xz) * 0x1111)
             & (u64::from(xy) * 0x0001_0001_0001_0001);
-        // Normal axis: the low and high ends of `n[a] · [plane i, plane i + 1]` (the
-        // choices of `span`), summed as in `normal_passes`.
-        let ends = |a: usize, i: usize| {
-            let (p0, p1) = (self.n[a] * planes[a][i], self.n[a] * planes[a][i + 1]);
-            (min(p0, p1), max(p0, p1))
-        };
-        let ex: [(f64, f64); NX] = std::array::from_fn(|i| ends(0, i));
-        let ey: [(f64, f64); NY] = std::array::from_fn(|j| ends(1, j));
-        let ez: [(f64, f64); NZ] = std::array::from_fn(|k| ends(2, k));
+        // Normal axis: `span` of each cell on each axis, summed as in `normal_passes`.
+        let cell = |a: usize, i: usize| span(self.n[a], planes[a][i], planes[a][i + 1]);
+        let ex: [(f64, f64); NX] = std::array::from_fn(|i| cell(0, i));
+        let ey: [(f64, f64); NY] = std::array::from_fn(|j| cell(1, j));
+        let ez: [(f64, f64); NZ] = std::array::from_fn(|k| cell(2, k));
         let mut sxy = [[(0.0f64, 0.0f64); NX]; NY];
         for (j, &(ly, hy)) in ey.iter().enumerate() {
             for (i, &(lx, hx)) in ex.iter().enumerate() {
@@ -381,8 +381,8 @@ impl TriangleSat {
         let mut sep = 0u32;
         for e in 0..3 {
             let (a, b, lo, hi) = (self.ea[u][e], self.eb[u][e], self.elo[u][e], self.ehi[u][e]);
-            // `span`'s choices are the smaller and the larger product of a cell's two
-            // planes: cell `p` spans `min(pa[p], pa[p + 1])..=max(..)`.
+            // `span` from products shared by neighbouring cells: cell `p` spans
+            // `min(pa[p], pa[p + 1])..=max(..)`.
             let pa: [f64; 5] = std::array::from_fn(|t| if t <= NP { a * ps[t] } else { 0.0 });
             let pb: [f64; 5] = std::array::from_fn(|t| if t <= NQ { b * qs[t] } else { 0.0 });
             // The cells most likely separated: the largest low end and the smallest
@@ -466,8 +466,8 @@ fn dot(a: DVec3, b: DVec3) -> f64 {
 /// overflow `f64` in these formulas).
 #[inline(always)]
 fn min_max3(a: f64, b: f64, c: f64) -> (f64, f64) {
-    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-    (if c < lo { c } else { lo }, if c > hi { c } else { hi })
+    let (lo, hi) = ends(a, b);
+    (min(c, lo), max(c, hi))
 }
 
 #[cfg(test)]
