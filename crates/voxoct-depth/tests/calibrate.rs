@@ -150,16 +150,21 @@ fn render_platform(rig: &Rig, intr: &Intrinsics) -> DepthFrame {
     f
 }
 
-#[test]
-fn platform_plane_gives_tilt_and_height() {
-    let intr = Intrinsics {
+/// A 160×120 sensor, enough for the platform-plane fits.
+fn small_sensor() -> Intrinsics {
+    Intrinsics {
         width: 160,
         height: 120,
         fx: 145.0,
         fy: 145.0,
         cx: 79.5,
         cy: 59.5,
-    };
+    }
+}
+
+#[test]
+fn platform_plane_gives_tilt_and_height() {
+    let intr = small_sensor();
     let truth = Rig {
         tilt_deg: 21.5,
         sensor_position_m: Vec3::new(0.0, 0.32, 0.68),
@@ -193,14 +198,7 @@ fn platform_plane_gives_tilt_and_height() {
 
 #[test]
 fn images_show_depth_and_views() {
-    let intr = Intrinsics {
-        width: 160,
-        height: 120,
-        fx: 145.0,
-        fy: 145.0,
-        cx: 79.5,
-        cy: 59.5,
-    };
+    let intr = small_sensor();
     let rig = Rig {
         tilt_deg: 20.0,
         sensor_position_m: Vec3::new(0.0, 0.3, 0.7),
