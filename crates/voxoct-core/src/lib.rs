@@ -91,7 +91,7 @@
 //! setup of the edge axes, the candidate range and the dispatch, ~750 to the exact
 //! block test and ~800 to the payload updates and the bricks' expansion. One `insert`
 //! call per triangle (straight into the packed storage) costs ~0.28 µs; the reference
-//! descent ~3 µs. `par_insert` partitions the triangles in parallel (~6 % more
+//! descent ~3 µs. `par_insert` partitions the triangles in parallel (~7 % more
 //! instructions in all); on the snapshot (4 equal regions) the busiest of 2 threads
 //! does about half the work of one (0.17–0.22 µs of CPU per triangle).
 //!
