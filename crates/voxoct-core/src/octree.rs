@@ -1027,7 +1027,7 @@ impl Region {
                 let (carry, r) = (CARRY[r0 + t], (r0 + t) & 3);
                 keys[a][t] = kb + (u64::from(carry) << (21 * a));
                 ways[a][t] = ((wb ^ carry) & 1) << a;
-                bits[a][t] = LOW_BITS[r] << a;
+                bits[a][t] = morton2_axis(r as u32) << a;
             }
         }
         while mask != 0 {
@@ -1348,8 +1348,6 @@ fn octant(bc: UVec3, level: u32) -> usize {
 
 /// Whether position `r` (below 7) of a row starting inside a brick is in the next brick.
 const CARRY: [u32; 8] = [0, 0, 0, 0, 1, 1, 1, 1];
-/// The Morton bits (of the x axis) of position `r` (below 4) within a brick.
-const LOW_BITS: [u32; 4] = [0, 1, 8, 9];
 
 /// The brick coordinates of a brick-cache key `x | y << 21 | z << 42`.
 #[inline]
@@ -1370,7 +1368,13 @@ fn region_index(rc: UVec3) -> usize {
 /// Morton index of a 4×4×4 local coordinate (bits `z1 y1 x1 z0 y0 x0`).
 #[inline]
 fn morton2(l: UVec3) -> u32 {
-    (l.x & 1) | (l.y & 1) << 1 | (l.z & 1) << 2 | (l.x & 2) << 2 | (l.y & 2) << 3 | (l.z & 2) << 4
+    morton2_axis(l.x) | morton2_axis(l.y) << 1 | morton2_axis(l.z) << 2
+}
+
+/// The Morton bits of one coordinate below 4 (x's place; shift by the axis).
+#[inline(always)]
+fn morton2_axis(v: u32) -> u32 {
+    (v & 1) | (v & 2) << 2
 }
 
 #[inline]
