@@ -44,5 +44,6 @@ pub use voxoct_mesh as mesh;
 pub use voxoct_stl as stl;
 pub use voxoct_turntable as turntable;
 
-pub mod carve;
+/// Free-space carving, now in [`voxoct_depth::carve`] (re-exported here for compatibility).
+pub use voxoct_depth::carve;
 pub mod pipeline;
