@@ -143,13 +143,17 @@ fn assert_good_scan(name: &str, leaf: f32, min_complete: f32) {
     let leaf = r.tree.leaf_edge();
     let mb = model.bounds().unwrap();
     let stats = mesh.stats();
-    // Bounding box: within a few leaves of the model's, the base on the platform. Noise at
-    // grazing angles and the closed unseen underside may add a little.
-    let lo = mb.min;
+    // Bounding box: within a few leaves of the model's. Below, a round bottom that touches
+    // the platform at a point is not seen under the line of sight: the closure caps it
+    // (with the smallest surface) up to about a centimetre above the platform.
     let bounds = stats.bounds.expect("a non-empty mesh has bounds");
-    for (got, want, what) in [(bounds.min, lo, "min"), (bounds.max, mb.max, "max")] {
+    for (got, want, what) in [(bounds.min, mb.min, "min"), (bounds.max, mb.max, "max")] {
+        let mut err = (got - want).abs();
+        if what == "min" {
+            err.y = (got.y - want.y - 0.010).max(want.y - got.y);
+        }
         assert!(
-            (got - want).abs().max_element() <= 4.0 * leaf,
+            err.max_element() <= 4.0 * leaf,
             "{name}: bounds {what} {got} vs model {want}"
         );
     }

@@ -51,7 +51,10 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 /// In the box, a marked cell with at least `min_hits` hits is solid when its mean signed
 /// distance is not positive, and empty otherwise (its centre is outside the seen surface); an unmarked cell is empty when
 /// `seen_empty` says so of its coordinates, and unknown otherwise. Cells
-/// below the layer `floor` are excluded: the base of the solid lies on the floor at no cost.
+/// below the layer `floor` are excluded, and the box's faces (the floor included) border empty
+/// space: an unseen base costs its area like any other invented surface, so the solid stands
+/// on the floor where its footprint does not narrow above it (a box), and keeps the hollow
+/// under a rounded or arched bottom open where that is smaller.
 #[must_use]
 pub fn close_cells(
     cells: Vec<Cell>,
@@ -63,12 +66,6 @@ pub fn close_cells(
 ) -> Vec<Cell> {
     if lo.cmpgt(hi).any() {
         return cells;
-    }
-    // One excluded layer under the floor, so that the box's bottom is not taken for empty
-    // space.
-    let mut lo = lo;
-    if lo.y > 0 && lo.y <= floor {
-        lo.y = floor.min(lo.y) - 1;
     }
     let dim = hi - lo + UVec3::ONE;
     let dims = [dim.x as usize, dim.y as usize, dim.z as usize];
