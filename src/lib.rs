@@ -12,6 +12,8 @@
 //! | [`turntable`] | `voxoct-turntable` | turntables: simulated, stepper on GPIO (`gpio`), TCP |
 //! | [`stl`] | `voxoct-stl` | STL reading and writing |
 //!
+//! [`output`] writes the tools' output files: checked up front, all or nothing, atomic.
+//!
 //! ```
 //! use voxoct::depth::ScannerConfig;
 //! use voxoct::kinect::{DepthSource, SimConfig, SimulatedKinect};
@@ -45,4 +47,5 @@ pub use voxoct_stl as stl;
 pub use voxoct_turntable as turntable;
 
 pub mod carve;
+pub mod output;
 pub mod pipeline;
