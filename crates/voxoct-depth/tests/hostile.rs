@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use voxoct_depth::glam::Vec3;
 use voxoct_depth::{
-    DepthError, DepthFrame, MANIFEST_FILE, RecordedScan, Rig, ScanManifest, ScannerConfig,
-    SnapshotEntry, read_png_frame_sized, set_rig_in_manifest_text,
+    DepthError, DepthFrame, MANIFEST_FILE, RecordedScan, RgbImage, Rig, ScanManifest,
+    ScannerConfig, SnapshotEntry, read_png_frame_sized, set_rig_in_manifest_text, write_png,
 };
 
 /// A one-snapshot scan of 8x6 frames in `dir`.
@@ -161,4 +161,46 @@ fn d06_the_rig_edit_keeps_comments_unknown_keys_and_formatting() {
         .filter(|(a, b)| a != b)
         .collect();
     assert_eq!(changed.len(), 2, "{changed:?}");
+}
+
+#[test]
+fn d01_library_writes_follow_symlinks_keep_permissions_and_write_to_devices() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let img = RgbImage {
+        width: 2,
+        height: 2,
+        data: vec![7; 12],
+    };
+    fs::write(d.join("real.png"), b"old").unwrap();
+    fs::set_permissions(d.join("real.png"), fs::Permissions::from_mode(0o640)).unwrap();
+    std::os::unix::fs::symlink("real.png", d.join("link.png")).unwrap();
+    write_png(d.join("link.png"), &img).unwrap();
+    assert!(
+        fs::symlink_metadata(d.join("link.png"))
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(
+        fs::read(d.join("real.png"))
+            .unwrap()
+            .starts_with(b"\x89PNG")
+    );
+    let mode = fs::metadata(d.join("real.png"))
+        .unwrap()
+        .permissions()
+        .mode()
+        & 0o777;
+    assert_eq!(mode, 0o640);
+    std::os::unix::fs::symlink("/dev/null", d.join("null.png")).unwrap();
+    write_png(d.join("null.png"), &img).unwrap();
+    assert!(
+        fs::symlink_metadata(d.join("null.png"))
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(!fs::metadata("/dev/null").unwrap().is_file());
 }
