@@ -46,6 +46,36 @@ pub fn default_memory_limit() -> u64 {
     (total / 2).min(address_space / 4 * 3)
 }
 
+/// The largest `scan.toml` or settings file read: 16 MiB (a manifest of 100 000 frames is
+/// about 4 MiB).
+pub const MAX_SETTINGS_BYTES: u64 = 16 << 20;
+
+/// Reads a settings or manifest file: a regular file (symlinks followed) of at most
+/// [`MAX_SETTINGS_BYTES`], so that `/dev/zero` or a FIFO cannot exhaust memory or hang.
+fn read_settings_text(path: &Path) -> Result<String, DepthError> {
+    use std::io::Read;
+    let meta = fs::metadata(path).map_err(|e| DepthError::io(path, e))?;
+    let refuse = |reason: String| DepthError::BadFile {
+        path: path.to_owned(),
+        reason,
+    };
+    if !meta.is_file() {
+        return Err(refuse(
+            "not a regular file (a directory, device or FIFO)".into(),
+        ));
+    }
+    let mut text = String::new();
+    fs::File::open(path)
+        .and_then(|f| f.take(MAX_SETTINGS_BYTES + 1).read_to_string(&mut text))
+        .map_err(|e| DepthError::io(path, e))?;
+    if text.len() as u64 > MAX_SETTINGS_BYTES {
+        return Err(refuse(format!(
+            "larger than the {MAX_SETTINGS_BYTES} bytes a settings file may have"
+        )));
+    }
+    Ok(text)
+}
+
 /// Whether `p` is a relative path that stays inside its directory when read lexically
 /// (no root, no prefix, no `..` above the start).
 fn stays_inside(p: &Path) -> bool {
@@ -121,7 +151,7 @@ impl ScannerConfig {
     /// such as a scan manifest's `[[snapshot]]`, are ignored).
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self, DepthError> {
         let path = path.as_ref();
-        let text = fs::read_to_string(path).map_err(|e| DepthError::io(path, e))?;
+        let text = read_settings_text(path)?;
         Self::from_toml_str(&text, path)
     }
 
@@ -196,7 +226,7 @@ impl ScanManifest {
     /// Reads and validates a `scan.toml`.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DepthError> {
         let path = path.as_ref();
-        let text = fs::read_to_string(path).map_err(|e| DepthError::io(path, e))?;
+        let text = read_settings_text(path)?;
         Self::from_toml_str(&text, path)
     }
 

@@ -204,3 +204,13 @@ fn d01_library_writes_follow_symlinks_keep_permissions_and_write_to_devices() {
     );
     assert!(!fs::metadata("/dev/null").unwrap().is_file());
 }
+
+#[test]
+fn d10_a_manifest_or_settings_file_that_is_a_device_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::os::unix::fs::symlink("/dev/zero", dir.path().join(MANIFEST_FILE)).unwrap();
+    let e = RecordedScan::open(dir.path()).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    let e = ScannerConfig::from_file("/dev/zero").unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+}
