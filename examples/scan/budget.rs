@@ -54,8 +54,8 @@ pub fn check_flags(args: &Args, m: &ArgMatches) -> Result<(), String> {
     let depth = octree_depth(args.root, args.leaf);
     if args.lod > depth {
         return Err(format!(
-            "--lod {}: a level of detail of more levels than the octree has (--root {} m with --leaf \
-             {} m gives {depth} levels)",
+            "--lod {}: the level of detail cannot exceed the octree's {depth} levels (--root {} m \
+             with --leaf {} m)",
             args.lod, args.root, args.leaf
         ));
     }

@@ -362,8 +362,10 @@ fn a_too_short_timeout_is_a_timeout_and_the_session_survives() {
     let server = start(table, None);
     let mut c = RemoteTurntable::connect(server.local_addr(), None, quick()).unwrap();
     let err = c.rotate_by(90.0, Duration::from_millis(100)).unwrap_err();
-    assert!(matches!(err, TurntableError::Timeout { .. }), "{err}");
     assert_eq!(err.code(), ErrorCode::Timeout);
+    // Refused up front: the message says so, and no "timed out after".
+    assert!(err.to_string().contains("refused before moving"), "{err}");
+    assert!(!err.to_string().contains("timed out after"), "{err}");
     assert_eq!(c.angle_deg().unwrap(), 0.0, "nothing moved");
     c.ping().unwrap();
     server.shutdown();
