@@ -339,6 +339,67 @@ fn d06_calibrate_write_refuses_a_read_only_manifest_before_the_work() {
     assert_eq!(mode, 0o444);
 }
 
+#[test]
+fn d06_calibrate_write_updates_a_symlinks_target_keeping_comments_keys_and_mode() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let Some(o) = run(
+        "scan",
+        &[
+            "--builtin",
+            "figurine",
+            "--snapshots",
+            "8",
+            "--frames",
+            "1",
+            "--leaf",
+            "0.004",
+            "-q",
+            "--out",
+            "r.stl",
+            "--record-to",
+            "rec",
+        ],
+        dir.path(),
+    ) else {
+        return;
+    };
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rec = dir.path().join("rec");
+    // The manifest lives elsewhere, with a comment, an unknown key and mode 0640.
+    std::fs::create_dir(dir.path().join("store")).unwrap();
+    let text = std::fs::read_to_string(rec.join("scan.toml")).unwrap();
+    let text = format!("# bunny, 3rd try\n{text}\n[notes]\nlamp = \"off\" # keep me\n");
+    let real = dir.path().join("store/scan.toml");
+    std::fs::write(&real, &text).unwrap();
+    std::fs::set_permissions(&real, std::fs::Permissions::from_mode(0o640)).unwrap();
+    std::fs::remove_file(rec.join("scan.toml")).unwrap();
+    std::os::unix::fs::symlink("../store/scan.toml", rec.join("scan.toml")).unwrap();
+    let Some(o) = run("calibrate", &["--input", "rec", "--write"], dir.path()) else {
+        return;
+    };
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        std::fs::symlink_metadata(rec.join("scan.toml"))
+            .unwrap()
+            .file_type()
+            .is_symlink(),
+        "the link was replaced"
+    );
+    let after = std::fs::read_to_string(&real).unwrap();
+    assert!(after.contains("# bunny, 3rd try"), "{after}");
+    assert!(after.contains("lamp = \"off\" # keep me"), "{after}");
+    let changed = text
+        .lines()
+        .zip(after.lines())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(changed <= 2, "only the rig lines change:\n{after}");
+    let mode = std::fs::metadata(&real).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o640);
+    assert!(temporaries(&rec).is_empty() && temporaries(&dir.path().join("store")).is_empty());
+}
+
 // ---- 7a. --record-to over a recorded scan ----------------------------------------------
 
 #[test]
