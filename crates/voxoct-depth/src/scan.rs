@@ -50,16 +50,17 @@ pub fn default_memory_limit() -> u64 {
 /// about 4 MiB).
 pub const MAX_SETTINGS_BYTES: u64 = 16 << 20;
 
-/// Reads a settings or manifest file: a regular file (symlinks followed) of at most
-/// [`MAX_SETTINGS_BYTES`], so that `/dev/zero` or a FIFO cannot exhaust memory or hang.
-fn read_settings_text(path: &Path) -> Result<String, DepthError> {
+/// Reads a settings or manifest file of at most [`MAX_SETTINGS_BYTES`], so that
+/// `/dev/zero` cannot exhaust memory; unless `pipes` it must be a regular file (symlinks
+/// followed), so that a FIFO in a scan directory cannot hang the reader.
+fn read_settings_text(path: &Path, pipes: bool) -> Result<String, DepthError> {
     use std::io::Read;
     let meta = fs::metadata(path).map_err(|e| DepthError::io(path, e))?;
     let refuse = |reason: String| DepthError::BadFile {
         path: path.to_owned(),
         reason,
     };
-    if !meta.is_file() {
+    if meta.is_dir() || !(meta.is_file() || pipes) {
         return Err(refuse(
             "not a regular file (a directory, device or FIFO)".into(),
         ));
@@ -151,7 +152,8 @@ impl ScannerConfig {
     /// such as a scan manifest's `[[snapshot]]`, are ignored).
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self, DepthError> {
         let path = path.as_ref();
-        let text = read_settings_text(path)?;
+        // A pipe is allowed here (`--config <(…)`): it is the user's own choice.
+        let text = read_settings_text(path, true)?;
         Self::from_toml_str(&text, path)
     }
 
@@ -226,7 +228,7 @@ impl ScanManifest {
     /// Reads and validates a `scan.toml`.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DepthError> {
         let path = path.as_ref();
-        let text = read_settings_text(path)?;
+        let text = read_settings_text(path, false)?;
         Self::from_toml_str(&text, path)
     }
 

@@ -211,6 +211,7 @@ fn d10_a_manifest_or_settings_file_that_is_a_device_is_refused() {
     std::os::unix::fs::symlink("/dev/zero", dir.path().join(MANIFEST_FILE)).unwrap();
     let e = RecordedScan::open(dir.path()).unwrap_err();
     assert!(e.to_string().contains("not a regular file"), "{e}");
+    // A settings file may be a pipe, but not an endless one.
     let e = ScannerConfig::from_file("/dev/zero").unwrap_err();
-    assert!(e.to_string().contains("not a regular file"), "{e}");
+    assert!(e.to_string().contains("larger than"), "{e}");
 }
