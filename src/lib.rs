@@ -46,6 +46,7 @@ pub use voxoct_mesh as mesh;
 pub use voxoct_stl as stl;
 pub use voxoct_turntable as turntable;
 
-pub mod carve;
+/// Free-space carving, now in [`voxoct_depth::carve`] (re-exported here for compatibility).
+pub use voxoct_depth::carve;
 pub mod output;
 pub mod pipeline;

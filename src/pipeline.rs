@@ -5,11 +5,11 @@
 //! triangulate by pixel adjacency ([`voxoct_depth::triangulate`]), mark the octree leaves every
 //! triangle overlaps ([`voxoct_core::Octree`]), and mesh the marked leaves
 //! ([`voxoct_mesh::mesh_cells`]) — in solid mode together with the cells that no frame could
-//! see ([`crate::carve`]). Snapshots are processed in parallel with the `parallel` feature.
+//! see ([`voxoct_depth::carve`]). Snapshots are processed in parallel with the `parallel` feature.
 
 use std::time::{Duration, Instant};
 
-use voxoct_core::glam::Vec3;
+use voxoct_core::glam::{UVec3, Vec3};
 use voxoct_core::{Octree, OctreeError, Triangle};
 use voxoct_depth::{
     DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain, RecordedScan, ScannerConfig,
@@ -18,7 +18,8 @@ use voxoct_depth::{
 use voxoct_kinect::{DepthSource, SimulatedKinect, SourceError};
 use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions};
 
-use crate::carve::{CarveView, with_hidden_cells};
+use voxoct_depth::carve::{CarveView, Seen, visibility};
+use voxoct_mesh::closure::{close_cells, closure_box};
 
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
@@ -51,7 +52,7 @@ pub struct Params {
     /// Drop connected pieces of the mesh with fewer triangles than this fraction of the
     /// largest piece (stray blobs of errant readings, bubbles inside the solid); 0 keeps all.
     pub min_piece_fraction: f32,
-    /// With a solid mesh: fill what no frame could see ([`crate::carve`]), so the solid
+    /// With a solid mesh: fill what no frame could see ([`voxoct_depth::carve`]), so the solid
     /// closes over the unseen underside instead of leaking into a hollow shell there.
     pub carve: bool,
 }
@@ -253,7 +254,9 @@ pub fn reconstruct(
         })?;
     let mut options = params.mesh;
     if options.solid && options.floor == Floor::LowestMarked {
-        options.floor = Floor::Y(config.clip.min.y);
+        // The object stands on the platform (y = 0): its base is there, not at the clip
+        // box's floor a few millimetres above, which only keeps the platform's readings out.
+        options.floor = Floor::Y(config.clip.min.y.min(0.0));
     }
     let grid = tree.grid(depth);
     let mut cells = tree.cells_at_depth(depth);
@@ -275,7 +278,14 @@ pub fn reconstruct(
             Floor::Y(y) => Floor::y_layer(y, &grid),
             _ => 0,
         };
-        cells = with_hidden_cells(cells, &grid, &views, margin, floor);
+        if let Some((lo, hi)) = closure_box(&cells, &grid, floor) {
+            let seen = visibility(&views, &grid, lo, hi, margin, |_| false);
+            let dim = hi - lo + UVec3::ONE;
+            cells = close_cells(cells, &grid, (lo, hi), floor, options.min_hits, |c| {
+                let d = c - lo;
+                seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
+            });
+        }
     }
     drop(filtered);
     let mut mesh = voxoct_mesh::mesh_cells(&cells, &grid, &options)?;

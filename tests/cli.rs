@@ -236,4 +236,26 @@ fn bad_files_fail_cleanly() {
 fn live_scan_without_hardware_is_a_clear_error() {
     // No Kinect here: either the feature is off (say how to build it) or no device is found.
     assert_fails(&["--kinect", "--turntable", "127.0.0.1:1"], "Kinect");
+    // libfreenect's own messages are quietened: our one line is all there is.
+    let dir = tempfile::tempdir().unwrap();
+    if let Some(out) = scan(
+        &["--kinect", "--turntable", "127.0.0.1:1", "--out", "x.stl"],
+        dir.path(),
+    ) {
+        let all = [out.stdout, out.stderr].concat();
+        let text = String::from_utf8_lossy(&all);
+        let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+        assert_eq!(lines.len(), 1, "{text}");
+    }
+    assert_fails(&["--kinect-depth", "raw"], "--kinect");
+    assert_fails(
+        &[
+            "--kinect",
+            "--kinect-depth",
+            "metres",
+            "--turntable",
+            "127.0.0.1:1",
+        ],
+        "metres",
+    );
 }

@@ -80,6 +80,14 @@ struct Args {
     /// Live scan with a Kinect v1 (build with `--features freenect`).
     #[arg(long, help_heading = "Source")]
     kinect: bool,
+    /// Depth stream of a live scan: `mm` (the device's own calibration), `raw` (11-bit
+    /// disparities converted as the fakenect replay converts them; what libfreenect 0.5's
+    /// fakenect library serves) or `registered` (aligned to the RGB camera). Default: mm.
+    #[arg(long, value_name = "MODE", help_heading = "Source")]
+    kinect_depth: Option<voxoct::kinect::KinectDepth>,
+    /// Let libfreenect print its own messages during a live scan (quiet by default).
+    #[arg(short, long, help_heading = "Source")]
+    verbose: bool,
     /// The turntable server (examples/turntable_server.rs on the Pi) for a live scan.
     #[arg(long, value_name = "HOST:PORT", help_heading = "Source")]
     turntable: Option<String>,
@@ -529,6 +537,9 @@ fn check_args(args: &Args) -> Result<(), String> {
     }
     if args.turntable.is_some() && !args.kinect {
         return Err("--turntable is for live scans: add --kinect".into());
+    }
+    if args.kinect_depth.is_some() && !args.kinect {
+        return Err("--kinect-depth is for live scans: add --kinect".into());
     }
     Ok(())
 }

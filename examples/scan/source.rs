@@ -164,12 +164,20 @@ fn load_fakenect(
 }
 
 /// Turns the table through `n` equal steps, grabbing `frames` frames at each stop.
+///
+/// The order, which a fakenect recording for a rehearsed live scan follows
+/// (examples/record_fakenect.rs): home the table; then for each snapshot `k` of `0..n` read the
+/// table's angle, grab `frames` frames, and — except after the last — turn by `360°/n` and wait
+/// until the table has stopped. A live source has already consumed one frame when it opened.
+/// With `log`, one line per snapshot and per turn goes to stderr (the progress bar only
+/// shows on a terminal).
 fn capture<S: DepthSource + ?Sized>(
     source: &mut S,
     table: &mut dyn Turntable,
     mut on_angle: impl FnMut(&mut S, f32),
     args: &Args,
     progress: &Progress,
+    log: bool,
 ) -> Result<Vec<SnapshotFrames>, String> {
     let n = args.snapshots;
     let pb = progress.stage("capture", Some(u64::from(n)));
@@ -182,15 +190,28 @@ fn capture<S: DepthSource + ?Sized>(
             .map(|_| source.grab(GRAB_TIMEOUT))
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| format!("depth source: {e}"))?;
+        if log {
+            pb.suspend(|| {
+                eprintln!(
+                    "capture: snapshot {}/{n} at {angle}°: {} frames",
+                    k + 1,
+                    frames.len()
+                );
+            });
+        }
         snapshots.push(SnapshotFrames {
             angle_deg: angle,
             frames,
         });
         pb.inc(1);
         if k + 1 < n {
-            table
-                .rotate_by(360.0 / f64::from(n), TURN_TIMEOUT)
+            let step = 360.0 / f64::from(n);
+            let turned = table
+                .rotate_by(step, TURN_TIMEOUT)
                 .map_err(|e| format!("turntable: {e}"))?;
+            if log {
+                pb.suspend(|| eprintln!("turntable: turned by {turned}° (asked {step}°)"));
+            }
         }
     }
     pb.finish_and_clear();
@@ -265,6 +286,7 @@ fn simulate(
         SimulatedKinect::set_turntable_angle_deg,
         args,
         progress,
+        false,
     )?;
     Ok(Acquired {
         settings: Settings {
@@ -299,7 +321,7 @@ fn check_model_file(path: &Path) -> Result<(), String> {
 #[cfg(feature = "freenect")]
 mod live {
     use super::*;
-    use voxoct::kinect::KinectSource;
+    use voxoct::kinect::{KinectOptions, KinectSource};
     use voxoct::turntable::{ClientTimeouts, RemoteTurntable};
 
     pub fn capture(
@@ -319,21 +341,56 @@ mod live {
             u64::from(args.snapshots) * u64::from(args.frames),
         )?;
         // The sensor first: it is local, and without it there is nothing to turn the table for.
-        let mut kinect = KinectSource::open(0)
+        let depth = args.kinect_depth.unwrap_or_default();
+        if let Some(dir) = std::env::var_os("FAKENECT_PATH") {
+            check_fakenect_length(Path::new(&dir), args)?;
+        }
+        let options = KinectOptions {
+            depth,
+            verbose: args.verbose,
+        };
+        let mut kinect = KinectSource::open_with(0, options)
             .and_then(|k| k.with_intrinsics(config.sensor.intrinsics))
             .map_err(|e| format!("Kinect: {e}"))?;
+        let log = !args.quiet;
+        if log {
+            eprintln!("capture: Kinect v1 open, depth mode {depth}");
+        }
         let mut table =
             RemoteTurntable::connect(addr, args.token.as_deref(), ClientTimeouts::default())
                 .map_err(|e| format!("turntable at {addr}: {e}"))?;
-        let snapshots = super::capture(&mut kinect, &mut table, |_, _| {}, args, progress)?;
+        let snapshots = super::capture(&mut kinect, &mut table, |_, _| {}, args, progress, log)?;
         Ok(Acquired {
             settings: Settings {
                 config,
-                source: "Kinect v1".into(),
+                source: format!("Kinect v1 ({depth} depth)"),
             },
             snapshots,
         })
     }
+}
+
+/// A rehearsed live scan (FAKENECT_PATH set, libfreenect's fakenect library loaded) needs a
+/// recording long enough: opening the Kinect consumes one frame, the scan `snapshots × frames`,
+/// and libfreenect 0.5's fakenect ends its runloop at the end of `INDEX.txt` — a grab after that
+/// crashes or waits for ever — so one frame more must follow the last one grabbed.
+#[cfg(feature = "freenect")]
+fn check_fakenect_length(dir: &Path, args: &Args) -> Result<(), String> {
+    let count = FakenectSource::open(dir)
+        .map_err(|e| format!("FAKENECT_PATH: {e}"))?
+        .depth_frame_count();
+    let need = 2 + args.snapshots as usize * args.frames as usize;
+    if count < need {
+        return Err(format!(
+            "FAKENECT_PATH {}: {count} depth frames, but a live scan of {} snapshots × {} frames \
+             needs at least {need} (1 consumed on opening, then the scan's, then 1 more before \
+             the end of the recording); record one with the record_fakenect example",
+            dir.display(),
+            args.snapshots,
+            args.frames
+        ));
+    }
+    Ok(())
 }
 
 /// Without the `freenect` feature a live scan is not possible: say how to get one.

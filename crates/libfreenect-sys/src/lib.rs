@@ -2,7 +2,11 @@
 //! OpenKinect project; Debian package `libfreenect-dev`, 0.5.x).
 //!
 //! Only what a depth scanner needs is declared: the synchronous depth grab, the tilt state and
-//! its angle in degrees, setting the tilt, and stopping the synchronous runloop. The types
+//! its angle in degrees, setting the tilt, and stopping the synchronous runloop; and, from the
+//! core library, a context of one's own (`freenect_init`, `freenect_set_log_level`,
+//! `freenect_num_devices`, `freenect_open_device`, `freenect_close_device`,
+//! `freenect_shutdown`) to probe for a device quietly — the synchronous wrapper keeps its own
+//! context private, so its log level cannot be set. The types
 //! mirror `/usr/include/libfreenect.h` and `/usr/include/libfreenect_sync.h`; their layout is
 //! checked at compile time against the C layout (`freenect_raw_tilt_state` is 12 bytes).
 //!
@@ -23,6 +27,8 @@
 //! // The depth formats keep their C values; millimetres is format 5.
 //! assert_eq!(FREENECT_DEPTH_MM, 5);
 //! assert_eq!(FREENECT_DEPTH_RAW_NO_VALUE, 2047);
+//! // Log levels: a new context logs warnings and worse.
+//! assert_eq!(FREENECT_LOG_WARNING, 2);
 //! // The tilt state has the C layout: three i16, one i8, a 32-bit enum at offset 8.
 //! assert_eq!(std::mem::size_of::<freenect_raw_tilt_state>(), 12);
 //! // Whether the library was found when this crate was built.
@@ -61,6 +67,33 @@ pub const FREENECT_DEPTH_RAW_MAX_VALUE: u16 = 2048;
 pub const FREENECT_DEPTH_RAW_NO_VALUE: u16 = 2047;
 /// Raw accelerometer counts per g (`FREENECT_COUNTS_PER_G`).
 pub const FREENECT_COUNTS_PER_G: c_int = 819;
+
+/// `freenect_loglevel` (a C enum): how much the library prints to stderr for a context.
+pub type freenect_loglevel = c_uint;
+/// Only crashing, non-recoverable errors.
+pub const FREENECT_LOG_FATAL: freenect_loglevel = 0;
+/// Major errors (for example "Failed to open camera subdevice or it is not disabled.").
+pub const FREENECT_LOG_ERROR: freenect_loglevel = 1;
+/// Warnings: the level of a new context.
+pub const FREENECT_LOG_WARNING: freenect_loglevel = 2;
+/// Important messages.
+pub const FREENECT_LOG_NOTICE: freenect_loglevel = 3;
+/// Normal messages.
+pub const FREENECT_LOG_INFO: freenect_loglevel = 4;
+/// Development messages.
+pub const FREENECT_LOG_DEBUG: freenect_loglevel = 5;
+
+/// Opaque `freenect_context` (a library context: its USB session and log level).
+#[repr(C)]
+pub struct freenect_context {
+    _private: [u8; 0],
+}
+
+/// Opaque `freenect_device` (one opened Kinect).
+#[repr(C)]
+pub struct freenect_device {
+    _private: [u8; 0],
+}
 
 /// `freenect_tilt_status_code` (a C enum).
 pub type freenect_tilt_status_code = c_uint;
@@ -124,6 +157,30 @@ unsafe extern "C" {
 
     /// The tilt of a tilt state in degrees from the horizon (positive = up).
     pub fn freenect_get_tilt_degs(state: *mut freenect_raw_tilt_state) -> f64;
+
+    /// Creates a library context in `*ctx` (`usb_ctx` may be null: the library makes its own
+    /// USB session). Returns a negative value on failure, leaving `*ctx` null. Under the
+    /// fakenect library this reads `FAKENECT_PATH` (and exits the process when it is unset).
+    pub fn freenect_init(ctx: *mut *mut freenect_context, usb_ctx: *mut std::ffi::c_void) -> c_int;
+
+    /// Closes every device still open on `ctx` and frees it.
+    pub fn freenect_shutdown(ctx: *mut freenect_context) -> c_int;
+
+    /// Sets how much the library prints for `ctx` (`FREENECT_LOG_*`).
+    pub fn freenect_set_log_level(ctx: *mut freenect_context, level: freenect_loglevel);
+
+    /// Number of Kinect devices on the bus (negative on a USB error).
+    pub fn freenect_num_devices(ctx: *mut freenect_context) -> c_int;
+
+    /// Opens device `index` of `ctx` into `*dev`. Returns non-zero on failure.
+    pub fn freenect_open_device(
+        ctx: *mut freenect_context,
+        dev: *mut *mut freenect_device,
+        index: c_int,
+    ) -> c_int;
+
+    /// Closes a device opened with `freenect_open_device`.
+    pub fn freenect_close_device(dev: *mut freenect_device) -> c_int;
 
     /// The motor status of a tilt state.
     pub fn freenect_get_tilt_status(

@@ -60,6 +60,7 @@
 pub use glam;
 
 mod calibrate;
+pub mod carve;
 mod error;
 mod filter;
 mod inspect;

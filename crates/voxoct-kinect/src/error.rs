@@ -18,6 +18,19 @@ pub enum SourceError {
         source: std::io::Error,
     },
 
+    /// A file or directory could not be written (fakenect recordings).
+    ///
+    /// How to fix: check that the parent directory exists and is writable, and that the disk
+    /// is not full.
+    #[error("cannot write {path}: {source}")]
+    Write {
+        /// The file or directory.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+
     /// An OBJ file has a line that cannot be understood.
     ///
     /// How to fix: the line number points at the offending `v` or `f` statement; only

@@ -17,9 +17,23 @@ pub const RAW_NO_READING: u16 = 2047;
 /// `FREENECT_DEPTH_MM_MAX_VALUE` is 10 000 mm).
 pub const MAX_DEPTH_M: f32 = 10.0;
 
-/// Depth in metres of a raw 11-bit Kinect v1 disparity, with libfreenect's approximation
-/// `z = 1 / (−0.0030711016 · raw + 3.3309495161)` (from the OpenKinect wiki; NYU's toolbox
-/// uses the close `351.3 / (1092.5 − raw)`).
+/// Coefficients of the disparity model `z = 1 / (A · raw + B)` of [`raw_disparity_to_m`].
+const DISPARITY_A: f64 = -0.003_071_101_6;
+/// See [`DISPARITY_A`].
+const DISPARITY_B: f64 = 3.330_949_516_1;
+
+/// Depth in metres of a raw 11-bit Kinect v1 disparity: `z = 1 / (−0.0030711016 · raw +
+/// 3.3309495161)`.
+///
+/// This is the one disparity→depth model of voxoct: [`FakenectSource`] replays recordings
+/// with it, `KinectSource` uses it in raw mode (`FREENECT_DEPTH_11BIT`, the only format the
+/// fakenect library of libfreenect 0.5 serves), and [`FakenectWriter`] inverts it
+/// ([`m_to_raw_disparity`]) so a written recording replays to the depths it was given. The
+/// fit is Nicolas Burrus's, published on the OpenKinect wiki ("Imaging Information") and
+/// commonly called libfreenect's approximation (HARDWARE.md). NYU Depth v2's toolbox uses
+/// `z = 351.3 / (1092.5 − raw)`, fitted to another device: 5–7 % deeper than this one between
+/// 0.4 and 1 m, so a recording's absolute scale is only as good as the model fits its sensor.
+/// A real device in `FREENECT_DEPTH_MM` mode converts with its own factory calibration.
 ///
 /// `None` for [`RAW_NO_READING`], for values above 2047, and where the formula gives a depth
 /// that is not positive (raw ≥ 1085, where the denominator changes sign) or beyond
@@ -37,9 +51,45 @@ pub fn raw_disparity_to_m(raw: u16) -> Option<f32> {
     if raw >= RAW_NO_READING {
         return None;
     }
-    let denom = -0.003_071_101_6_f64 * f64::from(raw) + 3.330_949_516_1;
+    let denom = DISPARITY_A * f64::from(raw) + DISPARITY_B;
     let z = 1.0 / denom;
     (denom > 0.0 && z <= f64::from(MAX_DEPTH_M)).then_some(z as f32)
+}
+
+/// One raw disparity as a millimetre pixel of a [`DepthFrame`] (0 = no reading), through
+/// [`raw_disparity_to_m`].
+pub(crate) fn raw_disparity_to_mm(raw: u16) -> u16 {
+    raw_disparity_to_m(raw).map_or(0, |z| (z * 1000.0).round() as u16)
+}
+
+/// The raw 11-bit disparity whose depth under [`raw_disparity_to_m`] is nearest to `z_m`
+/// metres: the inverse model, rounded to the nearest integer disparity.
+///
+/// [`RAW_NO_READING`] for a depth that is not finite and positive, or that the model cannot
+/// represent (nearer than its raw-0 depth of 0.300 m, or farther than [`MAX_DEPTH_M`]). For
+/// every raw value `r` with a depth, `m_to_raw_disparity(raw_disparity_to_m(r)) == r`.
+///
+/// ```
+/// # use voxoct_kinect::{m_to_raw_disparity, raw_disparity_to_m};
+/// assert_eq!(m_to_raw_disparity(raw_disparity_to_m(800).unwrap()), 800);
+/// assert_eq!(m_to_raw_disparity(0.0), 2047);
+/// ```
+#[must_use]
+pub fn m_to_raw_disparity(z_m: f32) -> u16 {
+    if !(z_m.is_finite() && z_m > 0.0 && z_m <= MAX_DEPTH_M) {
+        return RAW_NO_READING;
+    }
+    let raw = ((1.0 / f64::from(z_m) - DISPARITY_B) / DISPARITY_A).round();
+    if !(0.0..f64::from(RAW_NO_READING)).contains(&raw) {
+        return RAW_NO_READING;
+    }
+    let raw = raw as u16;
+    // Rounding at the far end can step past the last raw value with a depth.
+    if raw_disparity_to_m(raw).is_some() {
+        raw
+    } else {
+        RAW_NO_READING
+    }
 }
 
 /// One line of `INDEX.txt`.
@@ -261,8 +311,7 @@ pub fn decode_fakenect_depth(bytes: &[u8], path: &Path) -> Result<DepthFrame, So
     }
     let mut frame = DepthFrame::empty(FAKENECT_WIDTH, FAKENECT_HEIGHT, 0.001);
     for (out, px) in frame.data.iter_mut().zip(body.chunks_exact(2)) {
-        let raw = u16::from_le_bytes([px[0], px[1]]);
-        *out = raw_disparity_to_m(raw).map_or(0, |z| (z * 1000.0).round() as u16);
+        *out = raw_disparity_to_mm(u16::from_le_bytes([px[0], px[1]]));
     }
     Ok(frame)
 }
@@ -310,4 +359,204 @@ impl DepthSource for FakenectSource {
         let half_degrees = *bytes.get(6)? as i8;
         Some(-f32::from(half_degrees) / 2.0)
     }
+}
+
+/// The bytes of one fakenect depth file: the header `P5 640 480 65535\n`, then the raw
+/// disparities as little-endian `u16`, row-major from the top-left pixel.
+///
+/// This is what libfreenect's `record` tool writes on a little-endian host (x86, ARM): it
+/// `fwrite`s the frame buffer as it is, and the fakenect library `memcpy`s the bytes after
+/// the header's newline back into its frame buffer, so the byte order is the host's (on a
+/// big-endian host neither tool would read these files correctly; neither exists in practice).
+///
+/// # Errors
+/// [`SourceError::Config`] when `raw` is not 640×480 values or holds a value above 2047.
+pub fn encode_fakenect_depth(raw: &[u16]) -> Result<Vec<u8>, SourceError> {
+    let n = (FAKENECT_WIDTH * FAKENECT_HEIGHT) as usize;
+    if raw.len() != n {
+        return Err(SourceError::Config {
+            field: "raw",
+            message: format!(
+                "a fakenect depth frame has {n} pixels (640x480), not {}",
+                raw.len()
+            ),
+        });
+    }
+    if let Some((i, v)) = raw.iter().enumerate().find(|&(_, &v)| v > RAW_NO_READING) {
+        return Err(SourceError::Config {
+            field: "raw",
+            message: format!("pixel {i} holds {v}, above the 11-bit range (2047 = no reading)"),
+        });
+    }
+    let header = format!("P5 {FAKENECT_WIDTH} {FAKENECT_HEIGHT} 65535\n");
+    let mut bytes = Vec::with_capacity(header.len() + 2 * n);
+    bytes.extend_from_slice(header.as_bytes());
+    for v in raw {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    Ok(bytes)
+}
+
+/// Writes a fakenect recording (`INDEX.txt` and `d-*.pgm` depth files) that both
+/// [`FakenectSource`] and libfreenect's fakenect library replay.
+///
+/// Depth files are named `d-<seconds>-<timestamp>.pgm` like the `record` tool's
+/// (`%c-%f-%u`): `seconds` starts at 1.000000 and grows by the frame interval given to
+/// [`FakenectWriter::create`]; the fakenect library sleeps between frames to reproduce these
+/// gaps, so the interval sets the replay's frame rate. `timestamp` is the frame's time in
+/// microseconds from the first frame. Each depth file is written through a temporary file and
+/// renamed; `INDEX.txt` is written the same way by [`FakenectWriter::finish`], so a recording
+/// without its index is never mistaken for a complete one.
+///
+/// ```
+/// use std::time::Duration;
+/// use voxoct_kinect::{DepthFrame, DepthSource, FakenectSource, FakenectWriter};
+///
+/// let dir = tempfile::tempdir()?;
+/// let mut frame = DepthFrame::empty(640, 480, 0.001);
+/// frame.data.fill(800); // 0.8 m everywhere
+/// let mut writer = FakenectWriter::create(dir.path().join("rec"), Duration::from_millis(500))?;
+/// writer.add_frame(&frame)?;
+/// writer.finish()?;
+/// let mut replay = FakenectSource::open(dir.path().join("rec"))?;
+/// let back = replay.grab(Duration::from_secs(1))?;
+/// // Depth is quantised to the disparity steps: about 2 mm at 0.8 m.
+/// assert!(back.data.iter().all(|&mm| mm.abs_diff(800) <= 1));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct FakenectWriter {
+    dir: PathBuf,
+    interval_s: f64,
+    lines: Vec<String>,
+}
+
+impl FakenectWriter {
+    /// Recorded time of the first frame, seconds.
+    const START_S: f64 = 1.0;
+
+    /// Creates the recording directory `dir` (it may exist but must be empty); frames will be
+    /// `interval` apart in recorded time.
+    ///
+    /// # Errors
+    /// [`SourceError::Config`] for a zero or over-an-hour interval or a directory that is not
+    /// empty, [`SourceError::Write`] when it cannot be created.
+    pub fn create(dir: impl AsRef<Path>, interval: Duration) -> Result<Self, SourceError> {
+        let dir = dir.as_ref().to_owned();
+        if interval.is_zero() || interval > Duration::from_secs(3600) {
+            return Err(SourceError::Config {
+                field: "interval",
+                message: format!("the frame interval must be between 0 and 1 h, got {interval:?}"),
+            });
+        }
+        std::fs::create_dir_all(&dir).map_err(|source| SourceError::Write {
+            path: dir.clone(),
+            source,
+        })?;
+        let mut entries = std::fs::read_dir(&dir).map_err(|source| SourceError::Io {
+            path: dir.clone(),
+            source,
+        })?;
+        if entries.next().is_some() {
+            return Err(SourceError::Config {
+                field: "dir",
+                message: format!(
+                    "{} is not empty; a fakenect recording needs a directory of its own",
+                    dir.display()
+                ),
+            });
+        }
+        Ok(Self {
+            dir,
+            interval_s: interval.as_secs_f64(),
+            lines: Vec::new(),
+        })
+    }
+
+    /// Appends one depth frame of raw 11-bit disparities (640×480, row-major, 2047 = no
+    /// reading).
+    ///
+    /// # Errors
+    /// [`SourceError::Config`] for a wrong size or a value above 2047,
+    /// [`SourceError::Write`] when the file cannot be written.
+    pub fn add_raw(&mut self, raw: &[u16]) -> Result<(), SourceError> {
+        let bytes = encode_fakenect_depth(raw)?;
+        let i = self.lines.len();
+        let offset_s = i as f64 * self.interval_s;
+        let name = format!(
+            "d-{:.6}-{}.pgm",
+            Self::START_S + offset_s,
+            (offset_s * 1e6).round() as u64 % (1 << 32)
+        );
+        write_atomic(&self.dir.join(&name), &bytes)?;
+        self.lines.push(name);
+        Ok(())
+    }
+
+    /// Appends a depth frame given as depths (any unit), converted to raw disparities with
+    /// [`m_to_raw_disparity`]; pixels without a reading, or out of the model's range, become
+    /// 2047.
+    ///
+    /// # Errors
+    /// [`SourceError::Config`] when the frame is not 640×480, [`SourceError::Write`].
+    pub fn add_frame(&mut self, frame: &DepthFrame) -> Result<(), SourceError> {
+        if (frame.width, frame.height) != (FAKENECT_WIDTH, FAKENECT_HEIGHT) {
+            return Err(SourceError::Config {
+                field: "frame",
+                message: format!(
+                    "fakenect frames are 640x480, not {}x{}",
+                    frame.width, frame.height
+                ),
+            });
+        }
+        let raw: Vec<u16> = frame
+            .data
+            .iter()
+            .map(|&v| {
+                if v == 0 {
+                    RAW_NO_READING
+                } else {
+                    m_to_raw_disparity(f32::from(v) * frame.unit_m)
+                }
+            })
+            .collect();
+        self.add_raw(&raw)
+    }
+
+    /// Depth frames written so far.
+    #[must_use]
+    pub fn frames(&self) -> usize {
+        self.lines.len()
+    }
+
+    /// Writes `INDEX.txt` (one depth file name per line) and returns the recording directory.
+    ///
+    /// # Errors
+    /// [`SourceError::Config`] when no frame was added, [`SourceError::Write`].
+    pub fn finish(self) -> Result<PathBuf, SourceError> {
+        if self.lines.is_empty() {
+            return Err(SourceError::Config {
+                field: "frames",
+                message: "a fakenect recording needs at least one depth frame".into(),
+            });
+        }
+        let mut index = self.lines.join("\n");
+        index.push('\n');
+        write_atomic(&self.dir.join("INDEX.txt"), index.as_bytes())?;
+        Ok(self.dir)
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file beside it.
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SourceError> {
+    let tmp = path.with_extension("partial");
+    std::fs::write(&tmp, bytes)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|source| {
+            let _ = std::fs::remove_file(&tmp);
+            SourceError::Write {
+                path: path.to_owned(),
+                source,
+            }
+        })
 }

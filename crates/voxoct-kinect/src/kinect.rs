@@ -7,14 +7,49 @@ use std::time::{Duration, Instant};
 
 use voxoct_depth::{DepthFrame, Intrinsics};
 
-use crate::{DepthSource, SourceError};
+use crate::{DepthSource, KinectDepth, SourceError};
 
 /// Frame size of the Kinect v1 depth stream in the medium resolution the sync API uses.
 const WIDTH: u32 = 640;
 const HEIGHT: u32 = 480;
 
-/// A live Kinect v1, read through `libfreenect_sync` in `FREENECT_DEPTH_MM` (millimetres
-/// along the optical axis, 0 = no reading).
+/// How [`KinectSource::open_with`] opens the device.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct KinectOptions {
+    /// Which depth stream to read (default: millimetres converted by the device's own
+    /// calibration).
+    pub depth: KinectDepth,
+    /// Let libfreenect print its own messages (log level `FREENECT_LOG_INFO`) while it looks
+    /// for the device; by default only fatal ones (`FREENECT_LOG_FATAL`), so a missing Kinect
+    /// is reported by our one-line [`SourceError::NoKinect`] alone.
+    pub verbose: bool,
+}
+
+/// A live Kinect v1, read through `libfreenect_sync` in one of the [`KinectDepth`] formats,
+/// always delivered as millimetre frames (depth along the optical axis, 0 = no reading).
+///
+/// # Opening, and libfreenect's messages
+/// [`KinectSource::open_with`] first probes for the device through a libfreenect context of
+/// its own (`freenect_init`, `freenect_num_devices`, `freenect_open_device`, closed again at
+/// once) whose log level it sets with `freenect_set_log_level` — quiet unless
+/// [`KinectOptions::verbose`]. The synchronous wrapper keeps its own context private, so its
+/// log level cannot be set; the probe means it is only asked for a device that is there,
+/// and its "Failed to open camera subdevice…" and "Error: Invalid index" lines no longer
+/// surround our error when there is none. Then it grabs one frame (which is discarded) to
+/// start the stream: **opening consumes one frame**.
+///
+/// # Under the fakenect library
+/// Loaded with `LD_LIBRARY_PATH=/usr/lib/<triple>/fakenect` and `FAKENECT_PATH=DIR`, the
+/// same calls replay a recording (see [`crate::FakenectWriter`]). libfreenect 0.5's fakenect
+/// serves only [`KinectDepth::Raw`] (asking for millimetres or registered depth aborts the
+/// process in an assertion); it reads one `INDEX.txt` line per runloop turn, sleeping to
+/// reproduce the recorded frame gaps whether or not anyone grabs, and the synchronous wrapper
+/// keeps only the newest frame — a consumer slower than the recording loses frames. At the
+/// end of `INDEX.txt` (libfreenect 0.5) the runloop prints "Warning: No more lines", ends and
+/// frees the device's buffers, and a later grab crashes the process (seen: a segmentation
+/// fault) or waits for ever; libfreenect 0.6+ starts the recording again instead
+/// (unless `FAKENECT_LOOP=0`). A recording for a live scan therefore holds the opening frame,
+/// the scan's frames, and a few frames more.
 ///
 /// libfreenect_sync keeps one global runloop thread for all devices: [`DepthSource::shutdown`]
 /// (also run on drop) calls `freenect_sync_stop`, which closes every Kinect the process
@@ -29,30 +64,56 @@ const HEIGHT: u32 = 480;
 #[derive(Debug)]
 pub struct KinectSource {
     index: i32,
+    depth: KinectDepth,
     intrinsics: Intrinsics,
     running: bool,
 }
 
 impl KinectSource {
-    /// Opens Kinect number `index` (0 = the first) and waits for its first depth frame.
+    /// Opens Kinect number `index` (0 = the first) in millimetre mode, quietly, and waits for
+    /// its first depth frame: [`KinectSource::open_with`] with the default options.
+    ///
+    /// # Errors
+    /// As [`KinectSource::open_with`].
+    pub fn open(index: i32) -> Result<Self, SourceError> {
+        Self::open_with(index, KinectOptions::default())
+    }
+
+    /// Opens Kinect number `index` (0 = the first) reading `options.depth`, and waits for its
+    /// first depth frame (consumed; see the type's docs).
     ///
     /// # Errors
     /// [`SourceError::NoKinect`] when no device answers (libfreenect returns quickly then, it
     /// does not hang); [`SourceError::FreenectUnavailable`] when libfreenect was not found at
-    /// build time; [`SourceError::Config`] for a negative index.
-    pub fn open(index: i32) -> Result<Self, SourceError> {
+    /// build time; [`SourceError::Config`] for a negative index, or for a mode other than
+    /// [`KinectDepth::Raw`] while `FAKENECT_PATH` is set (libfreenect 0.5's fakenect library
+    /// would abort the process).
+    pub fn open_with(index: i32, options: KinectOptions) -> Result<Self, SourceError> {
         if index < 0 {
             return Err(SourceError::Config {
                 field: "index",
                 message: format!("device index {index} is negative"),
             });
         }
+        if options.depth != KinectDepth::Raw && std::env::var_os("FAKENECT_PATH").is_some() {
+            return Err(SourceError::Config {
+                field: "depth",
+                message: format!(
+                    "FAKENECT_PATH is set, so libfreenect's fakenect library is meant to answer, \
+                     and libfreenect 0.5's serves only raw 11-bit depth (asking for {} aborts \
+                     the process); use raw depth (scan --kinect-depth raw)",
+                    options.depth
+                ),
+            });
+        }
+        sys::probe(index, options.verbose)?;
         let mut source = Self {
             index,
+            depth: options.depth,
             intrinsics: Intrinsics::KINECT_V1,
             running: true,
         };
-        match source.grab_mm() {
+        match source.grab_frame() {
             Ok(_) => Ok(source),
             Err(SourceError::Device { code, .. }) => {
                 source.stop();
@@ -93,6 +154,12 @@ impl KinectSource {
         self.index
     }
 
+    /// The depth stream being read.
+    #[must_use]
+    pub fn depth_mode(&self) -> KinectDepth {
+        self.depth
+    }
+
     /// Asks the tilt motor to pitch to `deg` degrees from the horizon (positive = UP, the
     /// device's convention; about −31…31). Returns before the motor has finished moving.
     ///
@@ -124,7 +191,7 @@ impl DepthSource for KinectSource {
     /// Blocks until the next frame; see the type's docs for what `timeout` can do.
     fn grab(&mut self, timeout: Duration) -> Result<DepthFrame, SourceError> {
         let start = Instant::now();
-        let frame = self.grab_mm()?;
+        let frame = self.grab_frame()?;
         if start.elapsed() > timeout {
             return Err(SourceError::Timeout(timeout));
         }
@@ -152,8 +219,56 @@ mod sys {
     use libfreenect_sys as ffi;
 
     use super::{HEIGHT, KinectSource, WIDTH};
-    use crate::SourceError;
+    use crate::fakenect::raw_disparity_to_mm;
+    use crate::{KinectDepth, SourceError};
     use voxoct_depth::DepthFrame;
+
+    /// Looks for device `index` through a context of our own, at a log level we choose, and
+    /// releases it again (see `KinectSource`'s docs).
+    pub(super) fn probe(index: i32, verbose: bool) -> Result<(), SourceError> {
+        let mut ctx: *mut ffi::freenect_context = ptr::null_mut();
+        // SAFETY: the out-pointer is valid for writes; a null USB context asks libfreenect to
+        // make its own.
+        let code = unsafe { ffi::freenect_init(&raw mut ctx, ptr::null_mut()) };
+        if code < 0 || ctx.is_null() {
+            return Err(SourceError::NoKinect {
+                index,
+                code: if code < 0 { code } else { -1 },
+            });
+        }
+        let level = if verbose {
+            ffi::FREENECT_LOG_INFO
+        } else {
+            ffi::FREENECT_LOG_FATAL
+        };
+        // SAFETY: `ctx` is the live context freenect_init just returned; it is shut down
+        // exactly once below and not used afterwards.
+        let result = unsafe {
+            ffi::freenect_set_log_level(ctx, level);
+            let count = ffi::freenect_num_devices(ctx);
+            if count <= index {
+                Err(SourceError::NoKinect {
+                    index,
+                    code: count.min(0),
+                })
+            } else {
+                let mut dev: *mut ffi::freenect_device = ptr::null_mut();
+                let code = ffi::freenect_open_device(ctx, &raw mut dev, index);
+                if code != 0 || dev.is_null() {
+                    Err(SourceError::NoKinect {
+                        index,
+                        code: if code == 0 { -1 } else { code },
+                    })
+                } else {
+                    ffi::freenect_close_device(dev);
+                    Ok(())
+                }
+            }
+        };
+        // SAFETY: see above; no device of `ctx` is left open.
+        unsafe { ffi::freenect_shutdown(ctx) };
+        result
+    }
 
     pub(super) fn stop() {
         // SAFETY: freenect_sync_stop takes no arguments and is a no-op when the runloop is
@@ -162,18 +277,18 @@ mod sys {
     }
 
     impl KinectSource {
-        pub(super) fn grab_mm(&mut self) -> Result<DepthFrame, SourceError> {
+        pub(super) fn grab_frame(&mut self) -> Result<DepthFrame, SourceError> {
+            let format = match self.depth {
+                KinectDepth::Mm => ffi::FREENECT_DEPTH_MM,
+                KinectDepth::Raw => ffi::FREENECT_DEPTH_11BIT,
+                KinectDepth::Registered => ffi::FREENECT_DEPTH_REGISTERED,
+            };
             let mut data: *mut c_void = ptr::null_mut();
             let mut timestamp = 0u32;
             // SAFETY: both out-pointers are valid for writes for the duration of the call;
             // the format is a valid `freenect_depth_format`.
             let code = unsafe {
-                ffi::freenect_sync_get_depth(
-                    &raw mut data,
-                    &raw mut timestamp,
-                    self.index,
-                    ffi::FREENECT_DEPTH_MM,
-                )
+                ffi::freenect_sync_get_depth(&raw mut data, &raw mut timestamp, self.index, format)
             };
             let n = (WIDTH * HEIGHT) as usize;
             if code != 0 || data.is_null() || !data.cast::<u16>().is_aligned() {
@@ -183,17 +298,23 @@ mod sys {
                 });
             }
             // SAFETY: on success libfreenect_sync hands out its own buffer of one
-            // medium-resolution (640×480) frame of `uint16_t` in FREENECT_DEPTH_MM, checked
-            // non-null and aligned above; it stays valid until the next call for this index,
-            // and we copy it out before returning.
+            // medium-resolution (640×480) frame of `uint16_t` (all three formats asked for
+            // are one `uint16_t` per pixel), checked non-null and aligned above; it stays
+            // valid until the next call for this index, and we copy it out before returning.
             let pixels = unsafe { std::slice::from_raw_parts(data.cast::<u16>().cast_const(), n) };
             let mut frame = DepthFrame::empty(WIDTH, HEIGHT, 0.001);
-            for (out, &mm) in frame.data.iter_mut().zip(pixels) {
-                *out = if mm > ffi::FREENECT_DEPTH_MM_MAX_VALUE {
-                    0
-                } else {
-                    mm
-                };
+            if self.depth == KinectDepth::Raw {
+                for (out, &raw) in frame.data.iter_mut().zip(pixels) {
+                    *out = raw_disparity_to_mm(raw);
+                }
+            } else {
+                for (out, &mm) in frame.data.iter_mut().zip(pixels) {
+                    *out = if mm > ffi::FREENECT_DEPTH_MM_MAX_VALUE {
+                        0
+                    } else {
+                        mm
+                    };
+                }
             }
             Ok(frame)
         }
@@ -232,10 +353,14 @@ mod sys {
     use crate::SourceError;
     use voxoct_depth::DepthFrame;
 
+    pub(super) fn probe(_index: i32, _verbose: bool) -> Result<(), SourceError> {
+        Err(SourceError::FreenectUnavailable)
+    }
+
     pub(super) fn stop() {}
 
     impl KinectSource {
-        pub(super) fn grab_mm(&mut self) -> Result<DepthFrame, SourceError> {
+        pub(super) fn grab_frame(&mut self) -> Result<DepthFrame, SourceError> {
             Err(SourceError::FreenectUnavailable)
         }
 

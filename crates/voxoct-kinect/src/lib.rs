@@ -31,8 +31,12 @@
 //!
 //! # Live Kinect v1
 //! With the `freenect` feature, `KinectSource::open(index)` reads a device through
-//! `libfreenect_sync` in millimetre mode; without a device it returns
-//! [`SourceError::NoKinect`] at once.
+//! `libfreenect_sync` in millimetre mode, and `KinectSource::open_with` in any
+//! [`KinectDepth`] mode — raw disparities are converted with the same
+//! [`raw_disparity_to_m`] as the fakenect replay; without a device it returns
+//! [`SourceError::NoKinect`] at once, with libfreenect's own messages quietened. Under
+//! libfreenect's fakenect library it replays a recording such as [`FakenectWriter`] writes:
+//! a live scan rehearsed without the hardware.
 //!
 //! # Example
 //! An exact frame of a 6 cm sphere seen head-on from 0.7 m: the pixel on the optical axis
@@ -66,15 +70,65 @@ use std::time::Duration;
 
 pub use error::SourceError;
 pub use fakenect::{
-    FAKENECT_HEIGHT, FAKENECT_WIDTH, FakenectSource, MAX_DEPTH_M, RAW_NO_READING,
-    decode_fakenect_depth, raw_disparity_to_m,
+    FAKENECT_HEIGHT, FAKENECT_WIDTH, FakenectSource, FakenectWriter, MAX_DEPTH_M, RAW_NO_READING,
+    decode_fakenect_depth, encode_fakenect_depth, m_to_raw_disparity, raw_disparity_to_m,
 };
 pub use glam;
 #[cfg(feature = "freenect")]
-pub use kinect::KinectSource;
+pub use kinect::{KinectOptions, KinectSource};
 pub use model::{Model, load_model, parse_obj};
 pub use sim::{NoiseModel, SimConfig, SimTimings, SimulatedKinect};
 pub use voxoct_depth::{DepthFrame, Intrinsics, Rig};
+
+/// Which depth stream of a live Kinect v1 is read (`KinectSource`, feature `freenect`).
+///
+/// Every mode is delivered as millimetre [`DepthFrame`]s. Parses from and prints as `mm`,
+/// `raw`, `registered`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum KinectDepth {
+    /// `FREENECT_DEPTH_MM`: libfreenect converts with the device's own factory calibration
+    /// (the best choice on a real device; not served by libfreenect 0.5's fakenect).
+    #[default]
+    Mm,
+    /// `FREENECT_DEPTH_11BIT`: raw disparities, converted with [`raw_disparity_to_m`] — the
+    /// model the fakenect replay uses; the only format libfreenect 0.5's fakenect serves.
+    Raw,
+    /// `FREENECT_DEPTH_REGISTERED`: millimetres resampled onto the RGB camera's 640×480 image,
+    /// so the RGB camera's intrinsics apply (give them in the scanner config). Real device
+    /// only: libfreenect 0.5's fakenect does not serve it.
+    Registered,
+}
+
+impl KinectDepth {
+    /// Every mode's name, as parsed.
+    pub const NAMES: [&'static str; 3] = ["mm", "raw", "registered"];
+}
+
+impl std::fmt::Display for KinectDepth {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Mm => "mm",
+            Self::Raw => "raw",
+            Self::Registered => "registered",
+        })
+    }
+}
+
+impl std::str::FromStr for KinectDepth {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "mm" => Ok(Self::Mm),
+            "raw" | "11bit" => Ok(Self::Raw),
+            "registered" => Ok(Self::Registered),
+            _ => Err(format!(
+                "unknown Kinect depth mode {s:?}; choose one of {}",
+                Self::NAMES.join(", ")
+            )),
+        }
+    }
+}
 
 /// A source of depth frames: a sensor, a simulator or a recording.
 ///

@@ -4,7 +4,10 @@ use std::path::Path;
 use std::time::Duration;
 
 use proptest::prelude::*;
-use voxoct_kinect::{DepthSource, FakenectSource, SourceError, raw_disparity_to_m};
+use voxoct_kinect::{
+    DepthFrame, DepthSource, FakenectSource, FakenectWriter, KinectDepth, SourceError,
+    encode_fakenect_depth, m_to_raw_disparity, raw_disparity_to_m,
+};
 
 const T: Duration = Duration::from_secs(1);
 const N: usize = 640 * 480;
@@ -180,8 +183,204 @@ fn real_nyu_frame_is_a_room() {
     assert!(near > 1.0 && far < 8.0, "{near}..{far}");
 }
 
+#[test]
+fn the_disparity_model_gives_known_depths_and_inverts_exactly() {
+    // z = 1 / (−0.0030711016·raw + 3.3309495161), values computed independently (Python).
+    for (raw, z) in [
+        (0u16, 0.300_214_7_f32),
+        (500, 0.556_979_3),
+        (800, 1.144_075_4),
+        (1000, 3.848_405),
+        (1052, 9.984_959),
+    ] {
+        let got = raw_disparity_to_m(raw).unwrap();
+        assert!((got - z).abs() <= z * 1e-6, "raw {raw}: {got} vs {z}");
+    }
+    // 1053 is beyond 10 m, 1085 past the pole, 2047 no reading, 2048+ not 11-bit.
+    for raw in [1053u16, 1084, 1085, 1500, 2047, 2048, u16::MAX] {
+        assert_eq!(raw_disparity_to_m(raw), None, "raw {raw}");
+    }
+    // Every raw value with a depth comes back from its depth; everything else is 2047.
+    let mut with_depth = 0;
+    for raw in 0..2048u16 {
+        match raw_disparity_to_m(raw) {
+            Some(z) => {
+                assert_eq!(m_to_raw_disparity(z), raw);
+                with_depth += 1;
+            }
+            None => assert!(raw > 1052),
+        }
+    }
+    assert_eq!(with_depth, 1053);
+    for z in [0.0, -1.0, 0.2, 0.3, 10.5, f32::NAN, f32::INFINITY] {
+        assert_eq!(m_to_raw_disparity(z), 2047, "{z}");
+    }
+}
+
+#[test]
+fn kinect_depth_modes_parse_and_print() {
+    for (name, mode) in [
+        ("mm", KinectDepth::Mm),
+        ("raw", KinectDepth::Raw),
+        ("registered", KinectDepth::Registered),
+    ] {
+        assert_eq!(name.parse::<KinectDepth>().unwrap(), mode);
+        assert_eq!(mode.to_string(), name);
+    }
+    assert_eq!(KinectDepth::default(), KinectDepth::Mm);
+    let e = "metres".parse::<KinectDepth>().unwrap_err();
+    assert!(
+        e.contains("metres") && e.contains("mm, raw, registered"),
+        "{e}"
+    );
+}
+
+#[test]
+fn written_recordings_read_back_frame_for_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec");
+    let mut w = FakenectWriter::create(&rec, Duration::from_millis(250)).unwrap();
+    // Three raw frames: a gradient over the whole 11-bit range, a constant, all "no reading".
+    let frames: Vec<Vec<u16>> = vec![
+        (0..N).map(|i| (i % 2048) as u16).collect(),
+        vec![777; N],
+        vec![2047; N],
+    ];
+    for f in &frames {
+        w.add_raw(f).unwrap();
+    }
+    assert_eq!(w.frames(), 3);
+    assert_eq!(w.finish().unwrap(), rec);
+
+    // The index and file names follow libfreenect's recorder: d-%f-%u.pgm, one per line.
+    let index = std::fs::read_to_string(rec.join("INDEX.txt")).unwrap();
+    let names: Vec<&str> = index.lines().collect();
+    assert_eq!(
+        names,
+        [
+            "d-1.000000-0.pgm",
+            "d-1.250000-250000.pgm",
+            "d-1.500000-500000.pgm"
+        ]
+    );
+    // Each file: the one-line header, then little-endian u16s, nothing else.
+    for (name, raw) in names.iter().zip(&frames) {
+        let bytes = std::fs::read(rec.join(name)).unwrap();
+        assert_eq!(bytes.len(), 17 + 2 * N);
+        assert_eq!(&bytes[..17], b"P5 640 480 65535\n");
+        assert_eq!(bytes, encode_fakenect_depth(raw).unwrap());
+        assert_eq!(u16::from_le_bytes([bytes[17 + 2], bytes[18 + 2]]), raw[1]);
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(&rec)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+
+    // Our reader serves them in order, converted with the one disparity model.
+    let mut src = FakenectSource::open(&rec).unwrap();
+    assert_eq!(src.depth_frame_count(), 3);
+    for raw in &frames {
+        let f = src.grab(T).unwrap();
+        for (&mm, &r) in f.data.iter().zip(raw) {
+            let want = raw_disparity_to_m(r).map_or(0, |z| (z * 1000.0).round() as u16);
+            assert_eq!(mm, want, "raw {r}");
+        }
+    }
+    assert!(matches!(
+        src.grab(T),
+        Err(SourceError::EndOfRecording { frames: 3, .. })
+    ));
+}
+
+#[test]
+fn depth_frames_survive_the_disparity_round_trip_within_a_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut frame = DepthFrame::empty(640, 480, 0.001);
+    for (i, d) in frame.data.iter_mut().enumerate() {
+        // 0 (no reading), then 250 mm .. 9.9 m, and 12 m (beyond the model).
+        *d = match i % 100 {
+            0 => 0,
+            1 => 12_000,
+            k => 250 + (k as u16 - 2) * 99,
+        };
+    }
+    let mut w = FakenectWriter::create(dir.path(), Duration::from_millis(33)).unwrap();
+    w.add_frame(&frame).unwrap();
+    w.finish().unwrap();
+    let back = FakenectSource::open(dir.path()).unwrap().grab(T).unwrap();
+    for (&sent, &got) in frame.data.iter().zip(&back.data) {
+        let z = f32::from(sent) / 1000.0;
+        if sent == 0 || !(0.3..=10.0).contains(&z) {
+            assert_eq!(got, 0, "{sent} mm");
+        } else {
+            // Half a disparity step (z²·0.00307/2) plus the millimetre rounding.
+            let tol = z * z * 0.003_071 / 2.0 + 0.000_5 + 1e-5;
+            let err = (f32::from(got) / 1000.0 - z).abs();
+            assert!(err <= tol, "{sent} mm came back as {got} mm");
+        }
+    }
+}
+
+#[test]
+fn the_writer_refuses_what_fakenect_could_not_replay() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("other.txt"), "x").unwrap();
+    let e = FakenectWriter::create(dir.path(), Duration::from_millis(33)).unwrap_err();
+    assert!(
+        matches!(e, SourceError::Config { field: "dir", .. })
+            && e.to_string().contains("not empty"),
+        "{e}"
+    );
+    let e = FakenectWriter::create(dir.path().join("r"), Duration::ZERO).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            SourceError::Config {
+                field: "interval",
+                ..
+            }
+        ),
+        "{e}"
+    );
+
+    let mut w = FakenectWriter::create(dir.path().join("r"), Duration::from_millis(33)).unwrap();
+    let e = w.add_raw(&[0; 100]).unwrap_err();
+    assert!(e.to_string().contains("307200"), "{e}");
+    let mut bad = vec![0u16; N];
+    bad[5] = 2048;
+    let e = w.add_raw(&bad).unwrap_err();
+    assert!(e.to_string().contains("pixel 5 holds 2048"), "{e}");
+    let e = w
+        .add_frame(&DepthFrame::empty(320, 240, 0.001))
+        .unwrap_err();
+    assert!(e.to_string().contains("320x240"), "{e}");
+    let e = w.finish().unwrap_err();
+    assert!(
+        matches!(
+            e,
+            SourceError::Config {
+                field: "frames",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(!dir.path().join("r/INDEX.txt").exists());
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn the_inverse_model_picks_the_nearest_disparity(z in 0.301f32..9.98) {
+        let raw = m_to_raw_disparity(z);
+        prop_assert!(raw < 2047);
+        // In disparity units the depth lies within half a step of the chosen raw value.
+        let exact = (1.0 / f64::from(z) - 3.330_949_516_1) / -0.003_071_101_6;
+        prop_assert!((exact - f64::from(raw)).abs() <= 0.5 + 1e-9, "{z} -> {raw} ({exact})");
+    }
 
     #[test]
     fn raw_disparity_grows_into_depth(a in 0u16..1100, b in 0u16..1100) {

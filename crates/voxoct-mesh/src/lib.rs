@@ -71,6 +71,7 @@ pub use voxoct_core::glam;
 pub use voxoct_core::{Cell, GridSpec, Octree};
 
 mod bitbox;
+pub mod closure;
 mod field;
 mod march;
 mod mesh;

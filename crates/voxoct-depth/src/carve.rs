@@ -1,4 +1,4 @@
-//! Free-space carving: which cells of a grid no depth frame could have seen.
+//! Free-space carving: what the depth frames say of every cell of a grid.
 //!
 //! A depth reading `d` at a pixel says that the ray through that pixel is empty up to `d`,
 //! and says nothing behind it. For every cell of a region and every view, the cell centre is
@@ -9,17 +9,16 @@
 //! - **behind**: farther than the reading by more than `margin` — hidden behind the surface;
 //! - unknown: outside the frame, behind the camera, or a pixel without reading.
 //!
-//! A cell is *hidden* when at least [`MIN_BEHIND`] views put it behind a surface and none
-//! puts it in front or near (one view alone is not trusted: a pixel without reading in the
-//! other views — the projector's shadow, a drop-out — would leave a stray blob). The object's interior is hidden; so is the space under an overhang and
-//! between the object's unseen underside and the platform. Marked as solid, hidden cells keep
-//! the solid-mode flood fill from leaking through the parts of the shell the sensor never
-//! saw, so the mesh closes there as a solid (a scan is then a printable object even where
-//! the scanner saw nothing), instead of becoming a hollow double-walled shell.
+//! [`visibility`] sums this up per cell over all views ([`Seen`]): seen empty by some view,
+//! seen on a surface only, or not seen at all. The meshing's closure of unseen space
+//! (`voxoct_mesh::closure`) takes the cells seen empty as outside and decides the unseen
+//! ones with a minimum cut. [`hidden_cells`] is the older rule, the visual hull: a cell is
+//! *hidden* when at least [`MIN_BEHIND`] views put it behind a surface and none puts it in
+//! front or near; it fills every concavity that no view looked into.
 
+use crate::{DepthFrame, Intrinsics};
 use voxoct_core::glam::{Affine3A, UVec3, Vec3};
 use voxoct_core::{Cell, GridSpec};
-use voxoct_depth::{DepthFrame, Intrinsics};
 
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
@@ -44,11 +43,27 @@ pub const MIN_BEHIND: u32 = 2;
 
 /// How a view sees a point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Seen {
+enum ViewSees {
     Front,
     Near,
     Behind,
     Unknown,
+}
+
+/// What all views together say of a cell ([`visibility`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Seen {
+    /// Some view sees the cell in front of its reading: empty space.
+    Empty,
+    /// No view sees it empty, some view sees it on its surface (within the margin).
+    Surface,
+    /// No view sees it empty or on a surface; at least [`MIN_BEHIND`] see it behind one.
+    Hidden,
+    /// No view sees it at all, and fewer than [`MIN_BEHIND`] see it behind a surface.
+    Unseen,
+    /// Skipped by the caller's filter.
+    Skipped,
 }
 
 /// `x.round()` (half away from zero) as an index when it lies in `0..len`, without a libm
@@ -70,25 +85,25 @@ fn pixel(x: f32, len: u32) -> Option<usize> {
 
 impl CarveView<'_> {
     #[inline]
-    fn classify(&self, p: Vec3, margin: f32) -> Seen {
+    fn classify(&self, p: Vec3, margin: f32) -> ViewSees {
         let q = self.object_to_camera.transform_point3(p);
         let Some((u, v, z)) = self.intrinsics.project(q) else {
-            return Seen::Unknown;
+            return ViewSees::Unknown;
         };
         let (Some(u), Some(v)) = (pixel(u, self.frame.width), pixel(v, self.frame.height)) else {
-            return Seen::Unknown;
+            return ViewSees::Unknown;
         };
         let raw = self.frame.data[v * self.frame.width as usize + u];
         if raw == 0 {
-            return Seen::Unknown;
+            return ViewSees::Unknown;
         }
         let d = f32::from(raw) * self.frame.unit_m;
         if z < d - margin {
-            Seen::Front
+            ViewSees::Front
         } else if z > d + margin {
-            Seen::Behind
+            ViewSees::Behind
         } else {
-            Seen::Near
+            ViewSees::Near
         }
     }
 }
@@ -247,7 +262,7 @@ type Corner = [f32; 3];
 /// A block's verdicts over all views.
 #[derive(Debug, Clone, Default)]
 struct BlockPlan {
-    /// No cell of the block can be hidden.
+    /// Some view sees every cell of the block in front: all are empty.
     none: bool,
     /// Views that see every cell behind.
     behind: u32,
@@ -258,28 +273,30 @@ struct BlockPlan {
     not_seen: Vec<u32>,
 }
 
-/// The cells of `grid` in the box `lo..=hi` (grid coordinates) that are hidden from every
-/// view (see the module docs), except those `skip` rejects (e.g. cells already marked).
+/// What the views say of every cell of `grid` in the box `lo..=hi` (grid coordinates), in
+/// x-fastest order ([`Seen`]); cells that `skip` rejects (e.g. cells already marked) are
+/// [`Seen::Skipped`]. With no views every cell is [`Seen::Unseen`].
 ///
 /// `margin` is the depth tolerance, metres: the sensor's noise (a few σ) plus half a cell
-/// diagonal. The result is sorted by z, then y, then x.
+/// diagonal.
 ///
 /// Blocks of cells are first classified per view against the minimum and maximum depth of
 /// the pixel tiles they project to; only views that see a block neither wholly in front nor
 /// wholly behind test its cells one by one. The result is exactly that of testing every
 /// cell against every view.
 #[must_use]
-pub fn hidden_cells(
+pub fn visibility(
     views: &[CarveView<'_>],
     grid: &GridSpec,
     lo: UVec3,
     hi: UVec3,
     margin: f32,
     skip: impl Fn(UVec3) -> bool + Sync,
-) -> Vec<UVec3> {
-    if views.is_empty() || lo.cmpgt(hi).any() {
+) -> Vec<Seen> {
+    if lo.cmpgt(hi).any() {
         return Vec::new();
     }
+    let (dim_x, dim_y) = ((hi.x - lo.x + 1) as usize, (hi.y - lo.y + 1) as usize);
     #[cfg(feature = "parallel")]
     let pyramids: Vec<Pyramid> = views.par_iter().map(|v| Pyramid::new(v.frame)).collect();
     #[cfg(not(feature = "parallel"))]
@@ -332,7 +349,7 @@ pub fn hidden_cells(
                     BlockSeen::NotSeen => out.not_seen.push(k as u32),
                 }
             }
-            if out.none || out.behind + ((mixed.len() + out.not_seen.len()) as u32) < MIN_BEHIND {
+            if out.none {
                 plans.push(BlockPlan {
                     none: true,
                     ..BlockPlan::default()
@@ -356,59 +373,97 @@ pub fn hidden_cells(
     #[cfg(not(feature = "parallel"))]
     let plans: Vec<BlockPlan> = (0..n_rows).flat_map(plan_row).collect();
     let slab = |z: u32| {
-        let mut out = Vec::new();
+        let mut out = Vec::with_capacity(dim_x * dim_y);
         let bz = ((z - lo.z) / BLOCK) as usize;
         for y in lo.y..=hi.y {
             let row = (bz * blocks.y as usize + ((y - lo.y) / BLOCK) as usize) * blocks.x as usize;
-            for (bx, plan) in plans[row..row + blocks.x as usize].iter().enumerate() {
-                if plan.none {
+            for x in lo.x..=hi.x {
+                let c = UVec3::new(x, y, z);
+                let plan = &plans[row + ((x - lo.x) / BLOCK) as usize];
+                if skip(c) {
+                    out.push(Seen::Skipped);
                     continue;
                 }
-                let x0 = lo.x + bx as u32 * BLOCK;
-                for x in x0..=(x0 + BLOCK - 1).min(hi.x) {
-                    let c = UVec3::new(x, y, z);
-                    if skip(c) {
-                        continue;
-                    }
-                    let mut behind = plan.behind;
-                    if !plan.mixed.is_empty() {
-                        let p = grid.cell_center(c);
-                        let mut seen = false;
-                        for &k in &plan.mixed {
-                            match views[k as usize].classify(p, margin) {
-                                Seen::Front | Seen::Near => {
-                                    seen = true;
-                                    break;
-                                }
-                                Seen::Behind => behind += 1,
-                                Seen::Unknown => {}
+                if plan.none {
+                    out.push(Seen::Empty);
+                    continue;
+                }
+                let mut behind = plan.behind;
+                let mut near = false;
+                let mut front = false;
+                if !plan.mixed.is_empty() {
+                    let p = grid.cell_center(c);
+                    for &k in &plan.mixed {
+                        match views[k as usize].classify(p, margin) {
+                            ViewSees::Front => {
+                                front = true;
+                                break;
                             }
+                            ViewSees::Near => near = true,
+                            ViewSees::Behind => behind += 1,
+                            ViewSees::Unknown => {}
                         }
-                        if seen {
-                            continue;
-                        }
-                    }
-                    for &k in &plan.not_seen {
-                        if behind >= MIN_BEHIND {
-                            break;
-                        }
-                        if views[k as usize].classify(grid.cell_center(c), margin) == Seen::Behind {
-                            behind += 1;
-                        }
-                    }
-                    if behind >= MIN_BEHIND {
-                        out.push(c);
                     }
                 }
+                if front {
+                    out.push(Seen::Empty);
+                    continue;
+                }
+                if near {
+                    out.push(Seen::Surface);
+                    continue;
+                }
+                for &k in &plan.not_seen {
+                    if behind >= MIN_BEHIND {
+                        break;
+                    }
+                    if views[k as usize].classify(grid.cell_center(c), margin) == ViewSees::Behind {
+                        behind += 1;
+                    }
+                }
+                out.push(if behind >= MIN_BEHIND {
+                    Seen::Hidden
+                } else {
+                    Seen::Unseen
+                });
             }
         }
         out
     };
     #[cfg(feature = "parallel")]
-    let slabs: Vec<Vec<UVec3>> = (lo.z..=hi.z).into_par_iter().map(slab).collect();
+    let slabs: Vec<Vec<Seen>> = (lo.z..=hi.z).into_par_iter().map(slab).collect();
     #[cfg(not(feature = "parallel"))]
-    let slabs: Vec<Vec<UVec3>> = (lo.z..=hi.z).map(slab).collect();
+    let slabs: Vec<Vec<Seen>> = (lo.z..=hi.z).map(slab).collect();
     slabs.concat()
+}
+
+/// The cells of `grid` in the box `lo..=hi` (grid coordinates) that are hidden from every
+/// view (see the module docs), except those `skip` rejects (e.g. cells already marked).
+///
+/// `margin` is the depth tolerance, metres: the sensor's noise (a few σ) plus half a cell
+/// diagonal. The result is sorted by z, then y, then x.
+#[must_use]
+pub fn hidden_cells(
+    views: &[CarveView<'_>],
+    grid: &GridSpec,
+    lo: UVec3,
+    hi: UVec3,
+    margin: f32,
+    skip: impl Fn(UVec3) -> bool + Sync,
+) -> Vec<UVec3> {
+    if views.is_empty() || lo.cmpgt(hi).any() {
+        return Vec::new();
+    }
+    let dim = hi - lo + UVec3::ONE;
+    visibility(views, grid, lo, hi, margin, skip)
+        .into_iter()
+        .enumerate()
+        .filter(|(_, s)| *s == Seen::Hidden)
+        .map(|(i, _)| {
+            let i = i as u32;
+            lo + UVec3::new(i % dim.x, i / dim.x % dim.y, i / (dim.x * dim.y))
+        })
+        .collect()
 }
 
 /// `cells` of one grid plus the hidden cells around them, as solid cells one cell deep
@@ -462,7 +517,7 @@ pub fn with_hidden_cells(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use voxoct_depth::Rig;
+    use crate::Rig;
 
     /// A frame of a flat wall `dist` metres in front of the camera.
     fn wall(dist: f32) -> DepthFrame {
@@ -553,13 +608,15 @@ mod tests {
             for y in lo.y..=hi.y {
                 for x in lo.x..=hi.x {
                     let c = UVec3::new(x, y, z);
-                    let seen: Vec<Seen> = views
+                    let seen: Vec<ViewSees> = views
                         .iter()
                         .map(|v| v.classify(grid.cell_center(c), margin))
                         .collect();
-                    let behind = seen.iter().filter(|&&s| s == Seen::Behind).count() as u32;
+                    let behind = seen.iter().filter(|&&s| s == ViewSees::Behind).count() as u32;
                     if behind >= MIN_BEHIND
-                        && !seen.iter().any(|&s| matches!(s, Seen::Front | Seen::Near))
+                        && !seen
+                            .iter()
+                            .any(|&s| matches!(s, ViewSees::Front | ViewSees::Near))
                     {
                         out.push(c);
                     }
