@@ -20,8 +20,9 @@ use serde::Serialize;
 
 use voxoct::depth::{
     AxisOptions, CalibSnapshot, Calibration, FilterChain, MANIFEST_FILE, PlatformOptions,
-    RecordedScan, Rig, Snapshot, calibrate, views_image, write_png,
+    RecordedScan, Rig, Snapshot, calibrate, set_rig_in_manifest_text, views_image, write_png_to,
 };
+use voxoct::output::Outputs;
 
 /// Measure a recorded scan's rig (tilt and sensor position) from the scan itself.
 #[derive(Debug, Parser)]
@@ -33,7 +34,8 @@ struct Args {
     /// A recorded scan of the empty platform, for the tilt and height.
     #[arg(long, value_name = "DIR")]
     platform: Option<PathBuf>,
-    /// Write the calibrated rig into DIR/scan.toml (atomically).
+    /// Write the calibrated rig into DIR/scan.toml (atomically; only the [rig] values change,
+    /// comments and other keys are kept; a symlink's target is updated).
     #[arg(long)]
     write: bool,
     /// Print one JSON object instead of text.
@@ -64,10 +66,14 @@ struct Report {
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Err(e) = voxoct::output::remove_temporary_files_on_signal() {
+        eprintln!("error: cannot install the signal handlers: {e}");
+        return ExitCode::FAILURE;
+    }
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", voxoct::output::terminal_safe(&e.to_string()));
             ExitCode::FAILURE
         }
     }
@@ -75,7 +81,19 @@ fn main() -> ExitCode {
 
 fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let chain = FilterChain::parse(&args.filter)?;
-    let mut scan = RecordedScan::open(&args.input)?;
+    // Every output is checked before the scan is read; all are written together at the end.
+    let manifest_path = args.input.join(MANIFEST_FILE);
+    let mut outputs = Outputs::new();
+    let preview_id = args
+        .preview
+        .as_deref()
+        .map(|p| outputs.add("--preview", p))
+        .transpose()?;
+    let write_id = args
+        .write
+        .then(|| outputs.add("--write", &manifest_path))
+        .transpose()?;
+    let scan = RecordedScan::open(&args.input)?;
     let snaps = CalibSnapshot::from_scan(&scan, &chain)?;
     let platform = match &args.platform {
         Some(dir) => Some(CalibSnapshot::from_scan(&RecordedScan::open(dir)?, &chain)?),
@@ -96,7 +114,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         &PlatformOptions::default(),
         &axis,
     )?;
-    if let Some(path) = &args.preview {
+    if let Some(id) = preview_id {
         let views = snaps
             .iter()
             .map(|s| {
@@ -109,7 +127,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                 )
             })
             .collect::<Result<Vec<_>, _>>()?;
-        write_png(path, &views_image(&views, 600))?;
+        outputs.write(id, |w| write_png_to(w, &views_image(&views, 600)))?;
     }
     if args.json {
         let report = Report {
@@ -132,13 +150,15 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             );
         }
     }
-    if args.write {
-        scan.manifest.rig = cal.rig;
-        let path = args.input.join(MANIFEST_FILE);
-        scan.manifest.save(&path)?;
-        if !args.json {
-            println!("# written to {}", path.display());
-        }
+    if let Some(id) = write_id {
+        let text = std::fs::read_to_string(&manifest_path)
+            .map_err(|e| format!("{}: {e}", manifest_path.display()))?;
+        let edited = set_rig_in_manifest_text(&text, &cal.rig, &manifest_path)?;
+        outputs.write(id, |w| w.write_all(edited.as_bytes()))?;
+    }
+    outputs.commit()?;
+    if args.write && !args.json {
+        println!("# written to {}", manifest_path.display());
     }
     Ok(())
 }

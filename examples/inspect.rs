@@ -18,8 +18,9 @@ use clap::Parser;
 
 use voxoct::depth::{
     FilterChain, RecordedScan, Snapshot, depth_image, difference_image, snapshot_image,
-    views_image, write_png,
+    views_image, write_png_to,
 };
+use voxoct::output::Outputs;
 
 /// Pictures of a recorded scan: frames, filtered snapshots, filter differences, point views.
 #[derive(Debug, Parser)]
@@ -46,7 +47,7 @@ struct Args {
     #[arg(long, value_name = "CHAIN", requires = "snapshot")]
     versus: Option<String>,
     /// Full colour of a difference at this many millimetres (default: 99th percentile).
-    #[arg(long, value_name = "MM")]
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
     scale_mm: Option<f32>,
     /// Output PNG of --snapshot.
     #[arg(long, value_name = "FILE.png")]
@@ -58,10 +59,14 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Err(e) = voxoct::output::remove_temporary_files_on_signal() {
+        eprintln!("error: cannot install the signal handlers: {e}");
+        return ExitCode::FAILURE;
+    }
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", voxoct::output::terminal_safe(&e.to_string()));
             ExitCode::FAILURE
         }
     }
@@ -73,9 +78,34 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             "nothing to do: give --snapshot K --out FILE.png and/or --views FILE.png".into(),
         );
     }
-    let scan = RecordedScan::open(&args.input)?;
+    if let Some(s) = args.scale_mm
+        && !(s.is_finite() && s > 0.0)
+    {
+        return Err(format!("--scale-mm must be a positive number of millimetres, got {s}").into());
+    }
+    if args.out.is_some() && args.snapshot.is_none() {
+        return Err("--out is the picture of --snapshot K: add --snapshot".into());
+    }
+    // Every output is checked before the scan is read; all are written together at the end.
+    let mut outputs = Outputs::new();
+    let out_id = args
+        .out
+        .as_deref()
+        .map(|p| outputs.add("--out", p))
+        .transpose()?;
+    let views_id = args
+        .views
+        .as_deref()
+        .map(|p| outputs.add("--views", p))
+        .transpose()?;
+    let stdout_taken = [out_id, views_id]
+        .into_iter()
+        .flatten()
+        .any(|id| outputs.is_stdout(id));
     let chain = FilterChain::parse(&args.filter)?;
-    if let (Some(k), Some(out)) = (args.snapshot, &args.out) {
+    let scan = RecordedScan::open(&args.input)?;
+    let mut said = Vec::new();
+    if let (Some(k), Some(out), Some(out_id)) = (args.snapshot, &args.out, out_id) {
         let frames = scan.frames.get(k).ok_or_else(|| {
             format!(
                 "--snapshot {k}: the scan has {} snapshots (0 to {})",
@@ -96,7 +126,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             let a = chain.apply(frames)?;
             let b = FilterChain::parse(versus)?.apply(frames)?;
             let (img, st) = difference_image(&a, &b, args.scale_mm.map(|s| s * 1e-3))?;
-            println!(
+            let line = format!(
                 "{} − {versus}: {} pixels in both, {} only in the first, {} only in the second; \
                  mean |difference| {:.3} mm, max {:.2} mm, full colour at {:.2} mm",
                 args.filter,
@@ -107,14 +137,15 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                 st.max_abs_m * 1e3,
                 st.scale_m * 1e3
             );
+            said.push(line);
             img
         } else {
             snapshot_image(frames, &chain.apply(frames)?)?
         };
-        write_png(out, &img)?;
-        println!("wrote {}", out.display());
+        outputs.write(out_id, |w| write_png_to(w, &img))?;
+        said.push(format!("wrote {}", out.display()));
     }
-    if let Some(path) = &args.views {
+    if let (Some(path), Some(views_id)) = (&args.views, views_id) {
         let m = &scan.manifest;
         let snaps = m
             .snapshots
@@ -130,11 +161,19 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                 )
             })
             .collect::<Result<Vec<_>, _>>()?;
-        write_png(path, &views_image(&snaps, 600))?;
-        println!(
+        outputs.write(views_id, |w| write_png_to(w, &views_image(&snaps, 600)))?;
+        said.push(format!(
             "wrote {} (left: top view, +z down; right: side view; one colour per snapshot)",
             path.display()
-        );
+        ));
+    }
+    outputs.commit()?;
+    for line in said {
+        if stdout_taken {
+            eprintln!("{line}");
+        } else {
+            println!("{line}");
+        }
     }
     Ok(())
 }

@@ -7,11 +7,13 @@
 //! # On any machine: a simulated table on loopback (for trying the protocol).
 //! cargo run --example turntable_server
 //! # On the Pi: real pins, reachable from the LAN, with a shared secret.
-//! VOXOCT_TT_TOKEN=s3cret cargo run --release --features gpio --example turntable_server -- \
+//! VOXOCT_TURNTABLE_TOKEN=s3cret cargo run --release --features gpio --example turntable_server -- \
 //!     --gpio --listen 0.0.0.0:7878 --microstep quarter --max-speed 30 --accel 60
 //! ```
 //!
-//! Stop it with Ctrl-C. Without a token anyone who can reach the port can
+//! Stop it with Ctrl-C or `SIGTERM`: a turn in progress finishes (with its
+//! deceleration ramp) and gets its reply, clients are told the server is
+//! shutting down, and the program exits with status 0. Without a token anyone who can reach the port can
 //! turn the table: the program refuses to listen beyond loopback without
 //! one unless `--insecure` is given.
 
@@ -25,8 +27,11 @@ use voxoct_turntable::{
     GpioPins, Microstep, ServerConfig, SimulatedTurntable, StepperConfig, Turntable, serve,
 };
 
-/// Environment variable read for the token when `--token` is not given.
-const TOKEN_ENV: &str = "VOXOCT_TT_TOKEN";
+/// Environment variable read for the token when `--token` is not given: the
+/// same name the scanner (`scan --turntable`) reads.
+const TOKEN_ENV: &str = "VOXOCT_TURNTABLE_TOKEN";
+/// The name older versions read; refused so that a token is never silently dropped.
+const OLD_TOKEN_ENV: &str = "VOXOCT_TT_TOKEN";
 
 /// Serve a turntable (A4988 stepper on GPIO, or simulated) over TCP.
 #[derive(Debug, Parser)]
@@ -36,7 +41,7 @@ struct Args {
     #[arg(long, default_value = "127.0.0.1:7878")]
     listen: String,
     /// Shared secret clients must present (printable ASCII, no spaces).
-    /// Default: the VOXOCT_TT_TOKEN environment variable, if set.
+    /// Default: the VOXOCT_TURNTABLE_TOKEN environment variable, if set.
     #[arg(long)]
     token: Option<String>,
     /// Listen beyond loopback without a token.
@@ -170,6 +175,12 @@ fn open_gpio(
 }
 
 fn run(args: Args) -> Result<(), String> {
+    if std::env::var_os(OLD_TOKEN_ENV).is_some() && std::env::var_os(TOKEN_ENV).is_none() {
+        return Err(format!(
+            "{OLD_TOKEN_ENV} is no longer read; the token variable is {TOKEN_ENV} (the same as the \
+             scanner's). How to fix: rename the variable"
+        ));
+    }
     let token = args
         .token
         .clone()
@@ -239,7 +250,24 @@ fn run(args: Args) -> Result<(), String> {
             "no token"
         }
     );
+    // SIGINT/SIGTERM: stop accepting, let a turn in progress finish and get its reply,
+    // tell clients the server is shutting down, then exit 0.
+    let stop = handle.stop_signal();
+    let mut signals = signal_hook::iterator::Signals::new([
+        signal_hook::consts::SIGINT,
+        signal_hook::consts::SIGTERM,
+    ])
+    .map_err(|e| format!("installing the signal handlers: {e}"))?;
+    let signal_thread = signals.handle();
+    std::thread::spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            eprintln!("turntable_server: signal {sig}: finishing the current turn, then stopping");
+            stop.stop();
+        }
+    });
     handle.join();
+    signal_thread.close();
+    eprintln!("turntable_server: stopped");
     Ok(())
 }
 

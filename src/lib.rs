@@ -12,6 +12,8 @@
 //! | [`turntable`] | `voxoct-turntable` | turntables: simulated, stepper on GPIO (`gpio`), TCP |
 //! | [`stl`] | `voxoct-stl` | STL reading and writing |
 //!
+//! [`output`] writes the tools' output files: checked up front, all or nothing, atomic.
+//!
 //! ```
 //! use voxoct::depth::ScannerConfig;
 //! use voxoct::kinect::{DepthSource, SimConfig, SimulatedKinect};
@@ -46,4 +48,5 @@ pub use voxoct_turntable as turntable;
 
 /// Free-space carving, now in [`voxoct_depth::carve`] (re-exported here for compatibility).
 pub use voxoct_depth::carve;
+pub mod output;
 pub mod pipeline;

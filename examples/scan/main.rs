@@ -10,15 +10,17 @@
 //! octree insertion → marching tetrahedra → STL. Each stage is a call into one voxoct crate;
 //! this file only parses the command line, times the stages and reports.
 
+mod budget;
+mod outputs;
 mod preview;
 mod source;
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use clap::{Parser, ValueEnum};
+use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
@@ -104,9 +106,12 @@ struct Args {
     /// Simulate exact, noise-free frames.
     #[arg(long, help_heading = "Source")]
     exact: bool,
-    /// Also write what was captured as a recorded-scan directory.
+    /// Also write what was captured as a recorded-scan directory (new or empty).
     #[arg(long, value_name = "DIR", help_heading = "Source")]
     record_to: Option<PathBuf>,
+    /// Let --record-to replace the recorded scan already in its directory.
+    #[arg(long, requires = "record_to", help_heading = "Source")]
+    force: bool,
     /// Scanner settings ([sensor], [rig], [clip] tables) overriding the source's own.
     #[arg(long, value_name = "FILE", help_heading = "Source")]
     config: Option<PathBuf>,
@@ -191,7 +196,7 @@ struct Args {
     min_component: Option<usize>,
 
     // ---- output ----------------------------------------------------------------------------
-    /// The STL file to write.
+    /// The STL file to write (`-`: standard output).
     #[arg(
         long,
         value_name = "FILE",
@@ -211,6 +216,10 @@ struct Args {
     /// Write a shaded picture of the result from three sides.
     #[arg(long, value_name = "FILE.png", help_heading = "Output")]
     preview: Option<PathBuf>,
+    /// Refuse runs estimated to need more memory than this (e.g. 8G, 512M; default: half
+    /// the machine's memory).
+    #[arg(long, value_name = "BYTES", value_parser = budget::parse_bytes, help_heading = "Output")]
+    max_memory: Option<u64>,
     /// No progress bars and no summary.
     #[arg(short, long, help_heading = "Output")]
     quiet: bool,
@@ -252,11 +261,16 @@ struct Stats {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
-    match run(&args) {
+    let matches = Args::command().get_matches();
+    let args = Args::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    if let Err(e) = voxoct::output::remove_temporary_files_on_signal() {
+        eprintln!("error: cannot install the signal handlers: {e}");
+        return ExitCode::FAILURE;
+    }
+    match run(&args, &matches) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", voxoct::output::terminal_safe(&e.to_string()));
             ExitCode::FAILURE
         }
     }
@@ -290,7 +304,7 @@ impl Progress {
     }
 }
 
-fn run(args: &Args) -> Result<(), String> {
+fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
     if args.list_models {
         for name in voxoct::kinect::Model::BUILTIN_NAMES {
             println!("{name}");
@@ -298,6 +312,13 @@ fn run(args: &Args) -> Result<(), String> {
         return Ok(());
     }
     check_args(args)?;
+    budget::check_flags(args, matches)?;
+    let outputs::Planned {
+        mut outputs,
+        out,
+        stats: stats_out,
+        preview: preview_out,
+    } = outputs::plan(args)?;
     let progress = Progress {
         enabled: !args.quiet && std::io::stderr().is_terminal(),
     };
@@ -309,6 +330,9 @@ fn run(args: &Args) -> Result<(), String> {
     let acquired = source::acquire(args, &progress)?;
     seconds.load = t.elapsed().as_secs_f64();
     if let Some(dir) = &args.record_to {
+        if args.force {
+            outputs::clear_record_to(dir)?;
+        }
         source::record(&acquired, dir)?;
     }
     let source::Acquired {
@@ -354,10 +378,10 @@ fn run(args: &Args) -> Result<(), String> {
     seconds.mesh = timings.mesh.as_secs_f64();
     let closed = mesh.check_closed_manifold();
     if mesh.triangles.is_empty() {
-        return Err("the scan produced an empty mesh: is the object inside the clip box? (check [clip] and [rig])".into());
+        return Err(budget::explain_empty(args, triangles_in, tree.leaf_count()));
     }
 
-    // 6. Write the STL (atomically: no half-written file at --out).
+    // 6. Write the STL, the preview and the stats; they replace the old files together.
     let t = Instant::now();
     let scale = match args.units {
         Units::Mm => 1000.0,
@@ -368,11 +392,19 @@ fn run(args: &Args) -> Result<(), String> {
     } else {
         voxoct::stl::StlFormat::Binary
     };
-    voxoct::stl::write_file(&args.out, &mesh.vertices, &mesh.triangles, format, scale)
-        .map_err(|e| format!("writing {}: {e}", args.out.display()))?;
+    outputs
+        .write(out, |w| {
+            voxoct::stl::write(w, &mesh.vertices, &mesh.triangles, format, scale)
+                .map_err(std::io::Error::other)
+        })
+        .map_err(|e| e.to_string())?;
     seconds.write = t.elapsed().as_secs_f64();
-    if let Some(path) = &args.preview {
-        preview::write_preview(path, &mesh.vertices, &mesh.triangles)?;
+    if let Some(id) = preview_out {
+        outputs
+            .write(id, |w| {
+                preview::write_preview(w, &mesh.vertices, &mesh.triangles)
+            })
+            .map_err(|e| e.to_string())?;
     }
     seconds.total = t_start.elapsed().as_secs_f64();
 
@@ -397,10 +429,13 @@ fn run(args: &Args) -> Result<(), String> {
         threads: rayon::current_num_threads(),
         seconds,
     };
-    if let Some(path) = &args.stats {
+    if let Some(id) = stats_out {
         let json = serde_json::to_string_pretty(&stats).map_err(|e| format!("stats: {e}"))?;
-        write_atomic(path, json.as_bytes())?;
+        outputs
+            .write(id, |w| w.write_all(json.as_bytes()))
+            .map_err(|e| e.to_string())?;
     }
+    outputs.commit().map_err(|e| e.to_string())?;
     if !args.quiet {
         summary(args, &stats);
     }
@@ -506,27 +541,7 @@ fn check_args(args: &Args) -> Result<(), String> {
     if args.kinect_depth.is_some() && !args.kinect {
         return Err("--kinect-depth is for live scans: add --kinect".into());
     }
-    if args.out.as_os_str().is_empty() {
-        return Err("--out must name a file".into());
-    }
-    if args.out.is_dir() {
-        return Err(format!(
-            "--out {} is a directory; name a file such as scan.stl",
-            args.out.display()
-        ));
-    }
     Ok(())
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same directory.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            format!("cannot write {}: {e}", path.display())
-        })
 }
 
 /// Peak resident set size of this process (Linux `VmHWM`), 0 where unknown.

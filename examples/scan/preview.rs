@@ -1,8 +1,5 @@
 //! A small z-buffer rasteriser: the mesh seen from three sides, shaded, as one PNG.
 
-use std::io::BufWriter;
-use std::path::Path;
-
 use voxoct::core::glam::Vec3;
 
 /// Pixels per view (square).
@@ -36,8 +33,12 @@ const VIEWS: [View; 3] = [
 ];
 
 /// Renders `vertices`/`triangles` from the front, the side and the top into an RGB image
-/// `3 * VIEW` wide and `VIEW` high, and writes it as PNG to `path` (via a temporary file).
-pub fn write_preview(path: &Path, vertices: &[Vec3], triangles: &[[u32; 3]]) -> Result<(), String> {
+/// `3 * VIEW` wide and `VIEW` high, and writes it as PNG to `w_out`.
+pub fn write_preview(
+    w_out: &mut dyn std::io::Write,
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+) -> std::io::Result<()> {
     let (w, h) = (3 * VIEW, VIEW);
     let mut rgb = vec![0u8; w * h * 3];
     for (i, px) in rgb.chunks_exact_mut(3).enumerate() {
@@ -57,29 +58,14 @@ pub fn write_preview(path: &Path, vertices: &[Vec3], triangles: &[[u32; 3]]) -> 
             rgb[o..o + 3].copy_from_slice(&[150, 150, 160]);
         }
     }
-    let tmp = path.with_extension("png.partial");
-    let result = (|| -> Result<(), String> {
-        let file = std::fs::File::create(&tmp)
-            .map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
-        let mut enc = png::Encoder::new(BufWriter::new(file), w as u32, h as u32);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut writer = enc
-            .write_header()
-            .map_err(|e| format!("{}: {e}", tmp.display()))?;
-        writer
-            .write_image_data(&rgb)
-            .map_err(|e| format!("{}: {e}", tmp.display()))?;
-        writer
-            .finish()
-            .map_err(|e| format!("{}: {e}", tmp.display()))?;
-        std::fs::rename(&tmp, path)
-            .map_err(|e| format!("cannot move preview to {}: {e}", path.display()))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let mut enc = png::Encoder::new(w_out, w as u32, h as u32);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut writer = enc.write_header().map_err(std::io::Error::other)?;
+    writer
+        .write_image_data(&rgb)
+        .map_err(std::io::Error::other)?;
+    writer.finish().map_err(std::io::Error::other)
 }
 
 fn render_view(

@@ -8,7 +8,7 @@ use voxoct::kinect::{DepthSource, FakenectSource, Model, SimConfig, SimulatedKin
 use voxoct::pipeline::{SnapshotFrames, recorded_snapshots};
 use voxoct::turntable::{SimulatedTurntable, Turntable};
 
-use crate::{Args, Progress};
+use crate::{Args, Progress, budget};
 
 /// Microsteps per turntable revolution of the simulated table: a 1.8° motor at quarter
 /// stepping (0.45° per step), the thesis's setting.
@@ -57,7 +57,7 @@ fn config_override(args: &Args) -> Result<Option<ScannerConfig>, String> {
 pub fn acquire(args: &Args, progress: &Progress) -> Result<Acquired, String> {
     let config = config_override(args)?;
     if let Some(dir) = &args.input {
-        return load_recorded(dir, config, progress);
+        return load_recorded(dir, args, config, progress);
     }
     if let Some(dir) = &args.fakenect {
         return load_fakenect(dir, args, config);
@@ -70,12 +70,38 @@ pub fn acquire(args: &Args, progress: &Progress) -> Result<Acquired, String> {
 
 fn load_recorded(
     dir: &Path,
+    args: &Args,
     config: Option<ScannerConfig>,
     progress: &Progress,
 ) -> Result<Acquired, String> {
-    if !dir.is_dir() {
-        return Err(format!("--input {}: no such directory", dir.display()));
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => {
+            return Err(format!(
+                "--input {} is a file; --input takes a recorded-scan directory (with scan.toml){}",
+                dir.display(),
+                if dir
+                    .extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("stl"))
+                {
+                    "; to scan a mesh use --model"
+                } else {
+                    ""
+                }
+            ));
+        }
+        Err(_) => return Err(format!("--input {}: no such directory", dir.display())),
     }
+    // The manifest first: the frames it lists must fit in memory.
+    let manifest = voxoct::depth::ScanManifest::load(dir.join(voxoct::depth::MANIFEST_FILE))
+        .map_err(|e| format!("--input: {e}"))?;
+    let frames: usize = manifest.snapshots.iter().map(|s| s.frames.len()).sum();
+    budget::check_memory(
+        args,
+        config.as_ref().unwrap_or(&manifest.config()),
+        manifest.snapshots.len() as u64,
+        frames as u64,
+    )?;
     let pb = progress.stage("load", None);
     pb.set_message(dir.display().to_string());
     let mut scan = RecordedScan::open(dir).map_err(|e| format!("--input: {e}"))?;
@@ -109,6 +135,7 @@ fn load_fakenect(
         .map_err(|e| format!("--fakenect: {e}"))?;
     let count = source.depth_frame_count();
     let per = args.frames as usize;
+    budget::check_memory(args, &config, (count / per.max(1)) as u64, count as u64)?;
     if count < per {
         return Err(format!(
             "--fakenect {}: {count} depth frames, fewer than --frames {per} for one snapshot",
@@ -201,6 +228,7 @@ fn simulate(
 ) -> Result<Acquired, String> {
     let (model, name) = match &args.model {
         Some(path) => {
+            check_model_file(path)?;
             let mut m = voxoct::kinect::load_model(path).map_err(|e| format!("--model: {e}"))?;
             if m.bounds().is_none_or(|b| {
                 b.min.y < -1e-6 || b.max.y > 0.4 || b.min.x.abs().max(b.max.x.abs()) > 0.15
@@ -241,6 +269,12 @@ fn simulate(
         exact: args.exact,
         ..SimConfig::default()
     };
+    budget::check_memory(
+        args,
+        &config,
+        u64::from(args.snapshots),
+        u64::from(args.snapshots) * u64::from(args.frames),
+    )?;
     let mut kinect =
         SimulatedKinect::new(&model, sim_config).map_err(|e| format!("simulator: {e}"))?;
     let mut table =
@@ -263,6 +297,26 @@ fn simulate(
     })
 }
 
+/// A `--model` must be a regular file (symlinks followed) of a size a mesh can have.
+fn check_model_file(path: &Path) -> Result<(), String> {
+    let meta = std::fs::metadata(path).map_err(|e| format!("--model {}: {e}", path.display()))?;
+    if !meta.is_file() {
+        return Err(format!(
+            "--model {} is not a regular file (a directory, device or FIFO); name the mesh file",
+            path.display()
+        ));
+    }
+    let max = voxoct::stl::MAX_FILE_BYTES;
+    if meta.len() > max {
+        return Err(format!(
+            "--model {} is {} bytes, more than the {max} a model may have; simplify it first",
+            path.display(),
+            meta.len()
+        ));
+    }
+    Ok(())
+}
+
 /// Live capture: a Kinect v1 through libfreenect and a networked turntable.
 #[cfg(feature = "freenect")]
 mod live {
@@ -280,6 +334,12 @@ mod live {
             .as_deref()
             .ok_or("--kinect needs a turntable: --turntable HOST:PORT (examples/turntable_server.rs on the Pi)")?;
         let config = config.ok_or("--kinect needs --config FILE with the rig's [sensor], [rig] and [clip] (see examples/thesis-rig.toml)")?;
+        budget::check_memory(
+            args,
+            &config,
+            u64::from(args.snapshots),
+            u64::from(args.snapshots) * u64::from(args.frames),
+        )?;
         // The sensor first: it is local, and without it there is nothing to turn the table for.
         let depth = args.kinect_depth.unwrap_or_default();
         if let Some(dir) = std::env::var_os("FAKENECT_PATH") {

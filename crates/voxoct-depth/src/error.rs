@@ -169,6 +169,17 @@ pub enum DepthError {
         message: String,
     },
 
+    /// A settings or manifest file that is not a regular file, or too large to be one.
+    ///
+    /// How to fix: name the TOML file itself (not a device or FIFO).
+    #[error("{}: {reason}", path.display())]
+    BadFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+
     /// A frame file of the wrong size, bit depth or colour type.
     ///
     /// How to fix: frames are 16-bit greyscale PNGs of the sensor's width and height.

@@ -64,6 +64,26 @@ impl RgbImage {
 /// Writes `img` as an 8-bit RGB PNG, atomically (a temporary file renamed over `path`).
 pub fn write_png(path: impl AsRef<Path>, img: &RgbImage) -> Result<(), DepthError> {
     let path = path.as_ref();
+    check_image(img)?;
+    write_atomic(path, |f| {
+        encode_png(BufWriter::new(f), img).map_err(|message| DepthError::Png {
+            path: path.to_owned(),
+            message,
+        })
+    })
+}
+
+/// Writes `img` as an 8-bit RGB PNG to `w` (a file, standard output, memory); the caller
+/// names the destination in its error.
+///
+/// # Errors
+/// An invalid image or a failing writer, as [`std::io::Error`].
+pub fn write_png_to<W: std::io::Write>(w: W, img: &RgbImage) -> std::io::Result<()> {
+    check_image(img).map_err(std::io::Error::other)?;
+    encode_png(w, img).map_err(std::io::Error::other)
+}
+
+fn check_image(img: &RgbImage) -> Result<(), DepthError> {
     let expected = img.width as usize * img.height as usize * 3;
     if img.data.len() != expected || img.width == 0 || img.height == 0 {
         return Err(DepthError::InvalidParameter {
@@ -76,18 +96,16 @@ pub fn write_png(path: impl AsRef<Path>, img: &RgbImage) -> Result<(), DepthErro
             ),
         });
     }
-    write_atomic(path, |f| {
-        let png_err = |e: png::EncodingError| DepthError::Png {
-            path: path.to_owned(),
-            message: e.to_string(),
-        };
-        let mut enc = png::Encoder::new(BufWriter::new(f), img.width, img.height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut w = enc.write_header().map_err(png_err)?;
-        w.write_image_data(&img.data).map_err(png_err)?;
-        w.finish().map_err(png_err)
-    })
+    Ok(())
+}
+
+fn encode_png<W: std::io::Write>(w: W, img: &RgbImage) -> Result<(), String> {
+    let mut enc = png::Encoder::new(w, img.width, img.height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc.write_header().map_err(|e| e.to_string())?;
+    w.write_image_data(&img.data).map_err(|e| e.to_string())?;
+    w.finish().map_err(|e| e.to_string())
 }
 
 /// For each pixel, how many of `frames` have no reading there.

@@ -78,12 +78,12 @@ pub use error::DepthError;
 pub use filter::{FILTER_NAMES, Filter, FilterChain, KINECT_V1_SIGMA_COEFF, kinect_v1_sigma};
 pub use inspect::{
     DiffStats, RgbImage, depth_image, difference_image, invalid_counts, snapshot_colour,
-    snapshot_image, views_image, write_png,
+    snapshot_image, views_image, write_png, write_png_to,
 };
 pub use scan::{
     MANIFEST_FILE, MAX_ABS_ANGLE_DEG, MAX_FRAME_SIDE, RecordedScan, SCAN_FORMAT, SCAN_VERSION,
-    ScanManifest, ScanWriter, ScannerConfig, SensorConfig, SnapshotEntry, read_png_frame,
-    write_png_frame,
+    ScanManifest, ScanWriter, ScannerConfig, SensorConfig, SnapshotEntry, default_memory_limit,
+    read_png_frame, read_png_frame_sized, set_rig_in_manifest_text, write_png_frame,
 };
 pub use snapshot::{HOLE, Snapshot};
 pub use triangulate::{DEFAULT_MAX_EDGE_SQ, triangulate, triangulate_vec};

@@ -25,6 +25,79 @@ pub const MAX_ABS_ANGLE_DEG: f32 = 3600.0;
 /// Largest frame width or height accepted in a manifest.
 pub const MAX_FRAME_SIDE: u32 = 16384;
 
+/// The memory a program should allow itself by default: half the machine's memory, and no
+/// more than three quarters of the process's address-space limit (`ulimit -v`). Linux
+/// figures; 8 GiB where they cannot be read.
+#[must_use]
+pub fn default_memory_limit() -> u64 {
+    let meminfo = fs::read_to_string("/proc/meminfo").unwrap_or_default();
+    let total = meminfo
+        .lines()
+        .find_map(|l| l.strip_prefix("MemTotal:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        .map_or(16 << 30, |kb| kb * 1024);
+    let limits = fs::read_to_string("/proc/self/limits").unwrap_or_default();
+    let address_space = limits
+        .lines()
+        .find(|l| l.starts_with("Max address space"))
+        .and_then(|l| l.split_whitespace().nth(3))
+        .and_then(|v| v.parse::<u64>().ok())
+        .unwrap_or(u64::MAX);
+    (total / 2).min(address_space / 4 * 3)
+}
+
+/// The largest `scan.toml` or settings file read: 16 MiB (a manifest of 100 000 frames is
+/// about 4 MiB).
+pub const MAX_SETTINGS_BYTES: u64 = 16 << 20;
+
+/// Reads a settings or manifest file of at most [`MAX_SETTINGS_BYTES`], so that
+/// `/dev/zero` cannot exhaust memory; unless `pipes` it must be a regular file (symlinks
+/// followed), so that a FIFO in a scan directory cannot hang the reader.
+fn read_settings_text(path: &Path, pipes: bool) -> Result<String, DepthError> {
+    use std::io::Read;
+    let meta = fs::metadata(path).map_err(|e| DepthError::io(path, e))?;
+    let refuse = |reason: String| DepthError::BadFile {
+        path: path.to_owned(),
+        reason,
+    };
+    if meta.is_dir() || !(meta.is_file() || pipes) {
+        return Err(refuse(
+            "not a regular file (a directory, device or FIFO)".into(),
+        ));
+    }
+    let mut text = String::new();
+    fs::File::open(path)
+        .and_then(|f| f.take(MAX_SETTINGS_BYTES + 1).read_to_string(&mut text))
+        .map_err(|e| DepthError::io(path, e))?;
+    if text.len() as u64 > MAX_SETTINGS_BYTES {
+        return Err(refuse(format!(
+            "larger than the {MAX_SETTINGS_BYTES} bytes a settings file may have"
+        )));
+    }
+    Ok(text)
+}
+
+/// Whether `p` is a relative path that stays inside its directory when read lexically
+/// (no root, no prefix, no `..` above the start).
+fn stays_inside(p: &Path) -> bool {
+    use std::path::Component;
+    let mut depth = 0i64;
+    for c in p.components() {
+        match c {
+            Component::Normal(_) => depth += 1,
+            Component::CurDir => {}
+            Component::ParentDir => {
+                depth -= 1;
+                if depth < 0 {
+                    return false;
+                }
+            }
+            Component::RootDir | Component::Prefix(_) => return false,
+        }
+    }
+    depth > 0
+}
+
 /// The `[sensor]` table: intrinsics and the depth unit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorConfig {
@@ -79,7 +152,8 @@ impl ScannerConfig {
     /// such as a scan manifest's `[[snapshot]]`, are ignored).
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self, DepthError> {
         let path = path.as_ref();
-        let text = fs::read_to_string(path).map_err(|e| DepthError::io(path, e))?;
+        // A pipe is allowed here (`--config <(…)`): it is the user's own choice.
+        let text = read_settings_text(path, true)?;
         Self::from_toml_str(&text, path)
     }
 
@@ -154,7 +228,7 @@ impl ScanManifest {
     /// Reads and validates a `scan.toml`.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DepthError> {
         let path = path.as_ref();
-        let text = fs::read_to_string(path).map_err(|e| DepthError::io(path, e))?;
+        let text = read_settings_text(path, false)?;
         Self::from_toml_str(&text, path)
     }
 
@@ -226,7 +300,16 @@ impl ScanManifest {
                 .iter()
                 .enumerate()
                 .map(|(j, f)| match f {
-                    Value::String(p) if !p.is_empty() => Ok(PathBuf::from(p)),
+                    Value::String(p) if !p.is_empty() && stays_inside(Path::new(p)) => {
+                        Ok(PathBuf::from(p))
+                    }
+                    Value::String(p) if !p.is_empty() => Err(cx.invalid(
+                        &format!("{fkey}[{j}]"),
+                        format!(
+                            "{p:?} is not a relative path inside the scan directory; frame \
+                             paths are relative to the directory of scan.toml"
+                        ),
+                    )),
                     Value::String(_) => {
                         Err(cx.invalid(&format!("{fkey}[{j}]"), "empty file name".into()))
                     }
@@ -319,9 +402,39 @@ pub struct RecordedScan {
 impl RecordedScan {
     /// Reads and validates `dir/scan.toml` and every frame it lists (in parallel with
     /// the `parallel` feature). Errors name the key or the file at fault.
+    ///
+    /// Every frame path must stay inside `dir` once the symlinks in it are resolved, and
+    /// name a regular file; each PNG's header is compared with the sensor's size before
+    /// its pixels are decoded; and the scan is refused when its frames would take more
+    /// than [`default_memory_limit`] (see [`RecordedScan::open_limited`]).
     pub fn open(dir: impl AsRef<Path>) -> Result<Self, DepthError> {
+        Self::open_limited(dir, default_memory_limit())
+    }
+
+    /// [`RecordedScan::open`] with the frames' memory limited to `max_bytes`.
+    pub fn open_limited(dir: impl AsRef<Path>, max_bytes: u64) -> Result<Self, DepthError> {
         let dir = dir.as_ref();
-        let manifest = ScanManifest::load(dir.join(MANIFEST_FILE))?;
+        let mpath = dir.join(MANIFEST_FILE);
+        let manifest = ScanManifest::load(&mpath)?;
+        let i = manifest.sensor.intrinsics;
+        let count: u64 = manifest
+            .snapshots
+            .iter()
+            .map(|s| s.frames.len() as u64)
+            .sum();
+        let need = count * u64::from(i.width) * u64::from(i.height) * 2;
+        if need > max_bytes {
+            return Err(DepthError::InvalidValue {
+                path: mpath,
+                key: "snapshot".into(),
+                reason: format!(
+                    "{count} frames of {}x{} need {need} bytes of memory, more than the {max_bytes} \
+                     allowed",
+                    i.width, i.height
+                ),
+            });
+        }
+        let root = dir.canonicalize().map_err(|e| DepthError::io(dir, e))?;
         let jobs: Vec<PathBuf> = manifest
             .snapshots
             .iter()
@@ -329,20 +442,39 @@ impl RecordedScan {
             .collect();
         let sensor = manifest.sensor;
         let load = |p: &PathBuf| {
-            read_png_frame(p, sensor.depth_unit_m).and_then(|f| {
-                let i = sensor.intrinsics;
-                if (f.width, f.height) == (i.width, i.height) {
-                    Ok(f)
-                } else {
-                    Err(DepthError::BadFrameFile {
+            let real = p.canonicalize().map_err(|e| DepthError::io(p, e))?;
+            if !real.starts_with(&root) {
+                return Err(DepthError::BadFrameFile {
+                    path: p.clone(),
+                    reason: "leaves the scan directory through a symbolic link".into(),
+                });
+            }
+            read_png_frame_sized(&real, sensor.depth_unit_m, Some((i.width, i.height)))
+                .map_err(|e| match e {
+                    DepthError::BadFrameFile { reason, .. } => DepthError::BadFrameFile {
                         path: p.clone(),
-                        reason: format!(
-                            "frame is {}x{}, the sensor is {}x{}",
-                            f.width, f.height, i.width, i.height
-                        ),
-                    })
-                }
-            })
+                        reason,
+                    },
+                    DepthError::Png { message, .. } => DepthError::Png {
+                        path: p.clone(),
+                        message,
+                    },
+                    e => e,
+                })
+                .and_then(|f| {
+                    let i = sensor.intrinsics;
+                    if (f.width, f.height) == (i.width, i.height) {
+                        Ok(f)
+                    } else {
+                        Err(DepthError::BadFrameFile {
+                            path: p.clone(),
+                            reason: format!(
+                                "frame is {}x{}, the sensor is {}x{}",
+                                f.width, f.height, i.width, i.height
+                            ),
+                        })
+                    }
+                })
         };
         #[cfg(feature = "parallel")]
         let loaded: Vec<DepthFrame> = {
@@ -537,6 +669,23 @@ impl ScanWriter {
 /// Reads a 16-bit greyscale PNG depth frame; `unit_m` becomes the frame's unit.
 /// Errors name the file: missing, not a PNG, another bit depth or colour type.
 pub fn read_png_frame(path: &Path, unit_m: f32) -> Result<DepthFrame, DepthError> {
+    read_png_frame_sized(path, unit_m, None)
+}
+
+/// [`read_png_frame`] that refuses, before decoding any pixel, a PNG whose header is not
+/// `expected` = (width, height); and that opens only regular files (a FIFO would block).
+pub fn read_png_frame_sized(
+    path: &Path,
+    unit_m: f32,
+    expected: Option<(u32, u32)>,
+) -> Result<DepthFrame, DepthError> {
+    let meta = fs::metadata(path).map_err(|e| DepthError::io(path, e))?;
+    if !meta.is_file() {
+        return Err(DepthError::BadFrameFile {
+            path: path.to_owned(),
+            reason: "not a regular file (a directory, device or FIFO)".into(),
+        });
+    }
     let file = fs::File::open(path).map_err(|e| DepthError::io(path, e))?;
     let png_err = |e: png::DecodingError| DepthError::Png {
         path: path.to_owned(),
@@ -547,6 +696,20 @@ pub fn read_png_frame(path: &Path, unit_m: f32) -> Result<DepthFrame, DepthError
     let mut reader = dec.read_info().map_err(png_err)?;
     let info = reader.info();
     let (w, h) = (info.width, info.height);
+    if let Some((ew, eh)) = expected
+        && (w, h) != (ew, eh)
+    {
+        return Err(DepthError::BadFrameFile {
+            path: path.to_owned(),
+            reason: format!("frame is {w}x{h}, the sensor is {ew}x{eh}"),
+        });
+    }
+    if w > MAX_FRAME_SIDE || h > MAX_FRAME_SIDE {
+        return Err(DepthError::BadFrameFile {
+            path: path.to_owned(),
+            reason: format!("{w}x{h} is larger than {MAX_FRAME_SIDE} pixels a side"),
+        });
+    }
     if info.color_type != png::ColorType::Grayscale || info.bit_depth != png::BitDepth::Sixteen {
         return Err(DepthError::BadFrameFile {
             path: path.to_owned(),
@@ -627,6 +790,58 @@ fn check_sensor_frame(
         });
     }
     Ok(())
+}
+
+// ---- TOML editing ----
+
+/// `text` (a `scan.toml`) with `[rig]`'s `tilt_deg` and `sensor_position_m` set to `rig`,
+/// and nothing else changed: comments, unknown keys, the order and the formatting of every
+/// other value stay as they were (a format-preserving edit). `origin` names the file in
+/// errors.
+///
+/// # Errors
+/// [`DepthError::Toml`] when `text` is not TOML; the errors of [`ScanManifest::from_toml_str`]
+/// when the edited text is not a valid manifest.
+pub fn set_rig_in_manifest_text(
+    text: &str,
+    rig: &Rig,
+    origin: &Path,
+) -> Result<String, DepthError> {
+    use toml_edit::{Array, DocumentMut, Item, Table as EditTable, Value as EditValue};
+    let mut doc: DocumentMut =
+        text.parse()
+            .map_err(|e: toml_edit::TomlError| DepthError::Toml {
+                path: origin.to_owned(),
+                message: e.to_string(),
+            })?;
+    if !doc.contains_key("rig") {
+        doc.insert("rig", Item::Table(EditTable::new()));
+    }
+    let table = doc["rig"]
+        .as_table_like_mut()
+        .ok_or_else(|| DepthError::WrongType {
+            path: origin.to_owned(),
+            key: "rig".into(),
+            expected: "a table",
+            found: "another value",
+        })?;
+    // A new value keeps the old one's surrounding spaces and comments.
+    let mut set = |key: &str, mut v: EditValue| {
+        if let Some(old) = table.get(key).and_then(Item::as_value) {
+            let decor = old.decor().clone();
+            *v.decor_mut() = decor;
+        }
+        table.insert(key, Item::Value(v));
+    };
+    set("tilt_deg", EditValue::from(f64_of(rig.tilt_deg)));
+    let mut position = Array::new();
+    for x in v3(rig.sensor_position_m) {
+        position.push(x);
+    }
+    set("sensor_position_m", EditValue::Array(position));
+    let out = doc.to_string();
+    ScanManifest::from_toml_str(&out, origin)?;
+    Ok(out)
 }
 
 // ---- TOML writing ----
@@ -757,11 +972,22 @@ impl Ctx<'_> {
     }
 
     fn value_num(&self, v: &Value, full: &str) -> Result<f32, DepthError> {
-        let x = match v {
-            Value::Float(x) => *x as f32,
-            Value::Integer(i) => *i as f32,
+        let (wide, x) = match v {
+            Value::Float(x) => (*x, *x as f32),
+            Value::Integer(i) => (*i as f64, *i as f32),
             v => return Err(self.wrong(full, "a number", v)),
         };
+        if wide.is_finite()
+            && (x.is_infinite() || (x != 0.0 && !x.is_normal()) || (x == 0.0 && wide != 0.0))
+        {
+            return Err(self.invalid(
+                full,
+                format!(
+                    "{wide} is out of range: values are 32-bit floats, whose magnitude must be 0 \
+                     or between about 1.2e-38 and 3.4e38"
+                ),
+            ));
+        }
         if x.is_finite() {
             Ok(x)
         } else {

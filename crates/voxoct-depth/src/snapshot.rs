@@ -336,11 +336,32 @@ fn read_full<R: Read>(r: &mut R, buf: &mut [u8]) -> Result<usize, DepthError> {
 }
 
 /// Writes a file atomically: `write` fills a temporary file next to `path`, which is
-/// then synced and renamed over `path`. Errors name `path`.
+/// then synced, given the old file's permissions and renamed over `path`. A symlink is
+/// followed (its target is replaced, the link stays); a path that exists and is not a
+/// regular file (a device, a FIFO) is written to directly, never replaced. Errors name
+/// `path`.
 pub(crate) fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut fs::File) -> Result<(), DepthError>,
 ) -> Result<(), DepthError> {
+    let original = path;
+    let resolved;
+    let mut old_permissions = None;
+    let path = match fs::metadata(original) {
+        Ok(m) if !m.is_file() && !m.is_dir() => {
+            let mut f = fs::OpenOptions::new()
+                .write(true)
+                .open(original)
+                .map_err(|e| DepthError::io(original, e))?;
+            return write(&mut f);
+        }
+        Ok(m) if m.is_file() => {
+            old_permissions = Some(m.permissions());
+            resolved = fs::canonicalize(original).map_err(|e| DepthError::io(original, e))?;
+            resolved.as_path()
+        }
+        _ => original,
+    };
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -351,16 +372,19 @@ pub(crate) fn write_atomic(
         .unwrap_or_default();
     let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
     let result = (|| {
-        let mut f = fs::File::create(&tmp).map_err(|e| DepthError::io(&tmp, e))?;
+        let mut f = fs::File::create(&tmp).map_err(|e| DepthError::io(original, e))?;
         write(&mut f).map_err(|e| match e {
             e @ (DepthError::Io { .. } | DepthError::InFile { .. }) => e,
             e => DepthError::InFile {
-                path: path.to_owned(),
+                path: original.to_owned(),
                 source: Box::new(e),
             },
         })?;
-        f.sync_all().map_err(|e| DepthError::io(&tmp, e))?;
-        fs::rename(&tmp, path).map_err(|e| DepthError::io(path, e))
+        f.sync_all().map_err(|e| DepthError::io(original, e))?;
+        if let Some(p) = old_permissions {
+            fs::set_permissions(&tmp, p).map_err(|e| DepthError::io(original, e))?;
+        }
+        fs::rename(&tmp, path).map_err(|e| DepthError::io(original, e))
     })();
     if result.is_err() {
         let _ = fs::remove_file(&tmp);

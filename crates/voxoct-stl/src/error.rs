@@ -114,6 +114,26 @@ pub enum StlError {
         scale: f32,
     },
 
+    /// The path is not a regular file (a directory, a device such as `/dev/zero`, a FIFO).
+    ///
+    /// How to fix: name the STL file itself.
+    #[error("not a regular file ({kind}); an STL model is a file")]
+    NotAFile {
+        /// What is there instead.
+        kind: &'static str,
+    },
+
+    /// The input is larger than [`crate::MAX_FILE_BYTES`].
+    ///
+    /// How to fix: simplify the model (fewer triangles) before scanning it.
+    #[error("{len} bytes is more than the {max} bytes an STL may have here; simplify the model")]
+    TooLarge {
+        /// Length of the input in bytes (at least this many).
+        len: u64,
+        /// The limit.
+        max: u64,
+    },
+
     /// More triangles than a binary STL can count (`u32::MAX`).
     #[error("{count} triangles do not fit in a binary STL (at most 4294967295)")]
     TooManyTriangles {

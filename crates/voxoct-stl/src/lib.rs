@@ -41,7 +41,7 @@ mod read;
 mod write;
 
 pub use error::StlError;
-pub use read::{parse, read, read_file, scale_triangles, weld};
+pub use read::{MAX_FILE_BYTES, parse, read, read_file, scale_triangles, weld};
 pub use write::{
     BINARY_HEADER_BYTES, BINARY_TRIANGLE_BYTES, StlFormat, write, write_ascii, write_binary,
     write_file,

@@ -11,12 +11,17 @@ use voxoct_core::glam::Vec3;
 use crate::StlError;
 use crate::write::{BINARY_HEADER_BYTES, BINARY_TRIANGLE_BYTES};
 
+/// The largest STL input read: 1 GiB (a binary STL of 21 million triangles).
+pub const MAX_FILE_BYTES: u64 = 1 << 30;
+
 /// Reads an STL (binary or ASCII, detected from the content) into triangles, in file units.
 ///
-/// Detection: a file whose length is exactly `84 + 50 * count` (count at byte offset 80) is
-/// binary even when its header begins with `solid` (many exporters do that); otherwise a file
-/// that begins with `solid` and whose first kilobyte is text is parsed as ASCII; anything else
-/// is binary and its length is checked against the count.
+/// Detection is by structure, never by the header's bytes: a file whose length is exactly
+/// `84 + 50 * count` (count at byte offset 80) is binary even when its header begins with
+/// `solid` or holds `COLOR=` (many exporters do that); otherwise a file that begins with
+/// `solid`, whose first line may hold any name (UTF-8 or not), and whose next word is
+/// `facet` or `endsolid` is ASCII; anything else is binary and its length is checked
+/// against the count. At most [`MAX_FILE_BYTES`] are read.
 ///
 /// Facet normals in the file are ignored: the winding defines the orientation.
 ///
@@ -24,22 +29,46 @@ use crate::write::{BINARY_HEADER_BYTES, BINARY_TRIANGLE_BYTES};
 /// [`StlError::TooShort`], [`StlError::Truncated`], [`StlError::CountMismatch`],
 /// [`StlError::NonFinite`], [`StlError::NonFiniteAscii`], [`StlError::Syntax`], or
 /// [`StlError::Io`].
-pub fn read<R: Read>(mut r: R) -> Result<Vec<Triangle>, StlError> {
+pub fn read<R: Read>(r: R) -> Result<Vec<Triangle>, StlError> {
     let mut bytes = Vec::new();
-    r.read_to_end(&mut bytes)?;
+    r.take(MAX_FILE_BYTES + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(StlError::TooLarge {
+            len: bytes.len() as u64,
+            max: MAX_FILE_BYTES,
+        });
+    }
     parse(&bytes)
 }
 
-/// Reads the STL file at `path` (see [`read`]); every error names the file.
+/// Reads the STL file at `path` (see [`read`]); every error names the file. Only a regular
+/// file (symlinks followed) of at most [`MAX_FILE_BYTES`] is read.
 ///
 /// # Errors
-/// As [`read`], wrapped in [`StlError::File`].
+/// As [`read`], and [`StlError::NotAFile`] or [`StlError::TooLarge`], wrapped in
+/// [`StlError::File`].
 pub fn read_file(path: impl AsRef<Path>) -> Result<Vec<Triangle>, StlError> {
     let path = path.as_ref();
-    std::fs::read(path)
-        .map_err(StlError::from)
-        .and_then(|bytes| parse(&bytes))
-        .map_err(|e| e.in_file(path))
+    (|| {
+        let meta = std::fs::metadata(path)?;
+        if !meta.is_file() {
+            let kind = if meta.is_dir() {
+                "a directory"
+            } else {
+                "a device, FIFO or socket"
+            };
+            return Err(StlError::NotAFile { kind });
+        }
+        if meta.len() > MAX_FILE_BYTES {
+            return Err(StlError::TooLarge {
+                len: meta.len(),
+                max: MAX_FILE_BYTES,
+            });
+        }
+        let file = std::fs::File::open(path)?;
+        read(file)
+    })()
+    .map_err(|e| e.in_file(path))
 }
 
 /// Parses STL bytes (see [`read`]).
@@ -85,18 +114,36 @@ fn expected_len(count: u32) -> u64 {
     BINARY_HEADER_BYTES as u64 + BINARY_TRIANGLE_BYTES as u64 * u64::from(count)
 }
 
-/// `solid` (after optional whitespace) and the first kilobyte is printable text.
+/// The structure of an ASCII STL: `solid` (after optional whitespace), a first line with
+/// any name, then `facet` or `endsolid` as the next word.
 fn looks_ascii(bytes: &[u8]) -> bool {
     let start = bytes
         .iter()
         .position(|b| !b.is_ascii_whitespace())
         .unwrap_or(bytes.len());
     let rest = &bytes[start..];
-    rest.starts_with(b"solid")
-        && rest
-            .iter()
-            .take(1024)
-            .all(|&b| b.is_ascii_graphic() || b.is_ascii_whitespace())
+    if !(rest.len() >= 5 && rest[..5].eq_ignore_ascii_case(b"solid")) {
+        return false;
+    }
+    // "solid" must be a whole word ("solidworks…" is a binary header).
+    if rest.get(5).is_some_and(|b| !b.is_ascii_whitespace()) {
+        return false;
+    }
+    let Some(eol) = rest.iter().position(|&b| b == b'\n') else {
+        return false;
+    };
+    let after = &rest[eol + 1..];
+    let word_start = after
+        .iter()
+        .position(|b| !b.is_ascii_whitespace())
+        .unwrap_or(after.len());
+    let word: Vec<u8> = after[word_start..]
+        .iter()
+        .take_while(|b| !b.is_ascii_whitespace())
+        .take(16)
+        .map(u8::to_ascii_lowercase)
+        .collect();
+    word == b"facet" || word == b"endsolid"
 }
 
 fn parse_binary(bytes: &[u8], count: u32) -> Result<Vec<Triangle>, StlError> {
@@ -192,22 +239,11 @@ impl<'a> Tokens<'a> {
 }
 
 fn parse_ascii(bytes: &[u8]) -> Result<Vec<Triangle>, StlError> {
-    let text = match std::str::from_utf8(bytes) {
-        Ok(t) => t,
-        Err(e) => {
-            let line = 1 + bytes[..e.valid_up_to()]
-                .iter()
-                .filter(|&&b| b == b'\n')
-                .count();
-            return Err(StlError::Syntax {
-                line,
-                expected: "UTF-8 text",
-                found: "invalid UTF-8".to_owned(),
-            });
-        }
-    };
+    // Names (after `solid` and `endsolid`) may be in any encoding; the grammar is ASCII,
+    // so a lossy decoding keeps every number and keyword.
+    let text = String::from_utf8_lossy(bytes);
     let mut tok = Tokens {
-        text,
+        text: &text,
         pos: 0,
         line: 1,
     };
@@ -216,7 +252,24 @@ fn parse_ascii(bytes: &[u8]) -> Result<Vec<Triangle>, StlError> {
     let mut out = Vec::new();
     loop {
         match tok.next() {
-            Some((t, _)) if t.eq_ignore_ascii_case("endsolid") => break,
+            Some((t, _)) if t.eq_ignore_ascii_case("endsolid") => {
+                // Some exporters write one `solid … endsolid` block per part.
+                tok.skip_line();
+                match tok.next() {
+                    None => break,
+                    Some((t, _)) if t.eq_ignore_ascii_case("solid") => {
+                        tok.skip_line();
+                        continue;
+                    }
+                    Some((t, line)) => {
+                        return Err(StlError::Syntax {
+                            line,
+                            expected: "solid or the end of the file",
+                            found: t.to_owned(),
+                        });
+                    }
+                }
+            }
             Some((t, _)) if t.eq_ignore_ascii_case("facet") => {}
             Some((t, line)) => {
                 return Err(StlError::Syntax {

@@ -288,6 +288,10 @@ fn remote_error(
         ErrorCode::Busy => TurntableError::Busy(message),
         ErrorCode::Unauthorised => TurntableError::Unauthorised,
         ErrorCode::Version => TurntableError::Version(message),
+        // Refused before moving: nothing timed out, the server says why.
+        ErrorCode::Timeout if message.contains("refused before moving") => {
+            TurntableError::Remote { code, message }
+        }
         ErrorCode::Timeout => TurntableError::Timeout {
             operation: format!("server: {message}"),
             after: wait,

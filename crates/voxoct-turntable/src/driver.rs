@@ -622,7 +622,7 @@ where
         while let Some(d) = p.next_delay() {
             secs += d.to_num::<f64>();
         }
-        Duration::from_secs_f64(secs)
+        Duration::try_from_secs_f64(secs).unwrap_or(Duration::MAX)
     }
 
     fn set_enabled(&mut self, on: bool) -> Result<(), TurntableError> {
@@ -681,11 +681,10 @@ where
             })?;
         let planned = self.planned_duration(n);
         if planned > timeout {
-            return Err(TurntableError::Timeout {
-                operation: format!(
-                    "rotate by {degrees} deg (the ramp needs {planned:?}; nothing moved)"
-                ),
-                after: timeout,
+            return Err(TurntableError::TooSlow {
+                operation: format!("rotate by {degrees} deg"),
+                needs: planned,
+                timeout,
             });
         }
         let signed = n as i32 * steps.signum() as i32;

@@ -26,6 +26,21 @@ pub enum TurntableError {
         after: Duration,
     },
 
+    /// A turn refused before moving: it would take longer than its timeout allows.
+    ///
+    /// How to fix: give a longer timeout, or a higher speed.
+    #[error(
+        "{operation} would take {needs:?}, longer than its timeout of {timeout:?}; refused before moving"
+    )]
+    TooSlow {
+        /// What was asked (`"rotate by 90 deg"`).
+        operation: String,
+        /// How long it would take.
+        needs: Duration,
+        /// The timeout it had.
+        timeout: Duration,
+    },
+
     /// The peer closed the connection, or it broke.
     ///
     /// How to fix: check that the server still runs and the network is up,
@@ -113,7 +128,7 @@ impl TurntableError {
     #[must_use]
     pub fn code(&self) -> ErrorCode {
         match self {
-            Self::Timeout { .. } => ErrorCode::Timeout,
+            Self::Timeout { .. } | Self::TooSlow { .. } => ErrorCode::Timeout,
             Self::BadAngle { .. } => ErrorCode::BadAngle,
             Self::Busy(_) => ErrorCode::Busy,
             Self::Unauthorised => ErrorCode::Unauthorised,

@@ -31,7 +31,10 @@ pub struct ServerConfig {
     /// How long a reply may take to write before the client counts as gone.
     pub write_timeout: Duration,
     /// Most connections handled at once (the session plus clients still in
-    /// their handshake); beyond it new connections are refused at once.
+    /// their handshake). When they are all taken, a new connection evicts the
+    /// oldest connection still in its handshake, taken from the address with
+    /// the most of them (so idle or flooding clients cannot lock out a client
+    /// with the token); only when none is in its handshake is it refused.
     pub max_connections: usize,
     /// Print one line per connection event to stderr.
     pub verbose: bool,
@@ -41,7 +44,7 @@ impl Default for ServerConfig {
     fn default() -> Self {
         Self {
             token: None,
-            handshake_timeout: Duration::from_secs(5),
+            handshake_timeout: Duration::from_secs(3),
             idle_timeout: Duration::from_secs(600),
             default_rotate_timeout: Duration::from_secs(60),
             max_rotate_timeout: Duration::from_secs(600),
@@ -63,6 +66,8 @@ struct Shared {
     table: Mutex<Box<dyn Turntable + Send>>,
     session_active: AtomicBool,
     connections: AtomicUsize,
+    /// Connections still in their handshake: id, peer, a handle to close it.
+    pending: Mutex<Vec<(u64, SocketAddr, TcpStream)>>,
     stop: AtomicBool,
     config: ServerConfig,
 }
@@ -188,6 +193,7 @@ where
         table: Mutex::new(Box::new(table)),
         session_active: AtomicBool::new(false),
         connections: AtomicUsize::new(0),
+        pending: Mutex::new(Vec::new()),
         stop: AtomicBool::new(false),
         config,
     });
@@ -205,28 +211,37 @@ where
 
 fn accept_loop(listener: &TcpListener, shared: &Arc<Shared>) {
     let mut workers: Vec<JoinHandle<()>> = Vec::new();
+    let mut next_id: u64 = 0;
     while !shared.stop.load(Ordering::SeqCst) {
         match listener.accept() {
             Ok((stream, peer)) => {
                 workers.retain(|w| !w.is_finished());
-                if shared.connections.load(Ordering::SeqCst) >= shared.config.max_connections {
+                if shared.connections.load(Ordering::SeqCst) >= shared.config.max_connections
+                    && !evict_one_pending(shared)
+                {
                     shared.log(peer, "refused: too many connections");
                     refuse_now(stream);
                     continue;
                 }
+                next_id += 1;
+                let id = next_id;
+                if let Ok(handle) = stream.try_clone() {
+                    lock(&shared.pending).push((id, peer, handle));
+                }
+                // Released when the thread ends, however it ends (also by a panic).
+                let slot = Slot {
+                    shared: Arc::clone(shared),
+                    id,
+                };
                 shared.connections.fetch_add(1, Ordering::SeqCst);
-                let s = Arc::clone(shared);
                 let spawned = std::thread::Builder::new()
                     .name("voxoct-tt-conn".into())
                     .spawn(move || {
-                        handle_connection(stream, peer, &s);
-                        s.connections.fetch_sub(1, Ordering::SeqCst);
+                        handle_connection(stream, peer, &slot.shared, id);
+                        drop(slot);
                     });
-                match spawned {
-                    Ok(h) => workers.push(h),
-                    Err(_) => {
-                        shared.connections.fetch_sub(1, Ordering::SeqCst);
-                    }
+                if let Ok(h) = spawned {
+                    workers.push(h);
                 }
             }
             Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
@@ -240,6 +255,44 @@ fn accept_loop(listener: &TcpListener, shared: &Arc<Shared>) {
     for w in workers {
         let _ = w.join();
     }
+}
+
+/// A connection's place in the count, given back on drop.
+struct Slot {
+    shared: Arc<Shared>,
+    id: u64,
+}
+
+impl Drop for Slot {
+    fn drop(&mut self) {
+        lock(&self.shared.pending).retain(|(id, _, _)| *id != self.id);
+        self.shared.connections.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Closes the oldest connection still in its handshake, from the address
+/// with the most such connections; `false` when there is none.
+fn evict_one_pending(shared: &Shared) -> bool {
+    let mut pending = lock(&shared.pending);
+    let count = |ip: std::net::IpAddr| pending.iter().filter(|(_, p, _)| p.ip() == ip).count();
+    let Some(ip) = pending
+        .iter()
+        .map(|(_, p, _)| p.ip())
+        .max_by_key(|&ip| count(ip))
+    else {
+        return false;
+    };
+    let Some(i) = pending.iter().position(|(_, p, _)| p.ip() == ip) else {
+        return false;
+    };
+    let (_, peer, stream) = pending.remove(i);
+    shared.log(peer, "evicted: still no handshake and the server is full");
+    let _ = stream.shutdown(std::net::Shutdown::Both);
+    true
 }
 
 fn refuse_now(mut stream: TcpStream) {
@@ -262,7 +315,7 @@ impl Drop for SessionGuard<'_> {
     }
 }
 
-fn handle_connection(mut stream: TcpStream, peer: SocketAddr, shared: &Shared) {
+fn handle_connection(mut stream: TcpStream, peer: SocketAddr, shared: &Shared, id: u64) {
     let cfg = &shared.config;
     if stream.set_nonblocking(false).is_err()
         || stream.set_write_timeout(Some(cfg.write_timeout)).is_err()
@@ -293,6 +346,8 @@ fn handle_connection(mut stream: TcpStream, peer: SocketAddr, shared: &Shared) {
         }
         LineEvent::Eof | LineEvent::Stopped => return,
     };
+    // Past the handshake line: no longer evictable.
+    lock(&shared.pending).retain(|(i, _, _)| *i != id);
     if let Err((code, msg)) = check_handshake(&line, cfg.token.as_deref()) {
         shared.log(peer, &format!("handshake refused: {code}"));
         if code == ErrorCode::Unauthorised {
@@ -339,7 +394,22 @@ fn handle_connection(mut stream: TcpStream, peer: SocketAddr, shared: &Shared) {
                     close_gracefully(&mut stream, LINGER);
                     break;
                 }
-                Ok(req) => execute(shared, req),
+                Ok(req) => {
+                    // A failing turntable (even a panicking one) gets an ERR reply.
+                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| execute(shared, req)))
+                        .unwrap_or_else(|panic| {
+                            let what = panic
+                                .downcast_ref::<&str>()
+                                .map(|s| (*s).to_string())
+                                .or_else(|| panic.downcast_ref::<String>().cloned())
+                                .unwrap_or_else(|| "unknown failure".into());
+                            shared.log(peer, &format!("request failed: {what}"));
+                            Reply::Err {
+                                code: ErrorCode::Internal,
+                                message: format!("the turntable failed: {what}"),
+                            }
+                        })
+                }
             },
             LineEvent::NotUtf8 => Reply::Err {
                 code: ErrorCode::BadRequest,

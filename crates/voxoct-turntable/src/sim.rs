@@ -52,14 +52,20 @@ impl SimulatedTurntable {
         }
     }
 
+    /// The speeds [`SimulatedTurntable::with_speed`] accepts, degrees per second.
+    pub const SPEED_RANGE_DEG_S: (f64, f64) = (0.01, 1e6);
+
     /// Makes turns take `|angle| / deg_per_s` seconds of real time.
     ///
     /// # Errors
-    /// [`TurntableError::Config`] unless `deg_per_s` is finite and positive.
+    /// [`TurntableError::Config`] unless `deg_per_s` is within
+    /// [`SimulatedTurntable::SPEED_RANGE_DEG_S`].
     pub fn with_speed(mut self, deg_per_s: f64) -> Result<Self, TurntableError> {
-        if !(deg_per_s.is_finite() && deg_per_s > 0.0) {
+        let (lo, hi) = Self::SPEED_RANGE_DEG_S;
+        if !(deg_per_s.is_finite() && (lo..=hi).contains(&deg_per_s)) {
             return Err(TurntableError::Config(format!(
-                "simulated speed {deg_per_s} deg/s: must be finite and > 0"
+                "simulated speed {deg_per_s} deg/s: must be between {lo} (a turn in 10 hours) \
+                 and {hi} deg/s"
             )));
         }
         self.speed_deg_s = Some(deg_per_s);
@@ -90,11 +96,12 @@ impl Turntable for SimulatedTurntable {
         let steps = self.scale.degrees_to_microsteps(degrees)?;
         let real = self.scale.microsteps_to_degrees(steps);
         if let Some(speed) = self.speed_deg_s {
-            let took = Duration::from_secs_f64(real.abs() / speed);
+            let took = Duration::try_from_secs_f64(real.abs() / speed).unwrap_or(Duration::MAX);
             if took > timeout {
-                return Err(TurntableError::Timeout {
-                    operation: format!("rotate by {real} deg (needs {took:?})"),
-                    after: timeout,
+                return Err(TurntableError::TooSlow {
+                    operation: format!("rotate by {real} deg"),
+                    needs: took,
+                    timeout,
                 });
             }
             std::thread::sleep(took);
@@ -150,7 +157,8 @@ mod tests {
     fn slow_table_times_out_without_moving() {
         let mut t = SimulatedTurntable::default().with_speed(1000.0).unwrap();
         let err = t.rotate_by(90.0, Duration::from_millis(10)).unwrap_err();
-        assert!(matches!(err, TurntableError::Timeout { .. }), "{err}");
+        assert!(matches!(err, TurntableError::TooSlow { .. }), "{err}");
+        assert!(SimulatedTurntable::default().with_speed(1e-20).is_err());
         assert_eq!(t.position_microsteps(), 0);
         let start = std::time::Instant::now();
         assert_eq!(t.rotate_by(45.0, T).unwrap(), 45.0);

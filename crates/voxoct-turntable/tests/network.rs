@@ -362,8 +362,10 @@ fn a_too_short_timeout_is_a_timeout_and_the_session_survives() {
     let server = start(table, None);
     let mut c = RemoteTurntable::connect(server.local_addr(), None, quick()).unwrap();
     let err = c.rotate_by(90.0, Duration::from_millis(100)).unwrap_err();
-    assert!(matches!(err, TurntableError::Timeout { .. }), "{err}");
     assert_eq!(err.code(), ErrorCode::Timeout);
+    // Refused up front: the message says so, and no "timed out after".
+    assert!(err.to_string().contains("refused before moving"), "{err}");
+    assert!(!err.to_string().contains("timed out after"), "{err}");
     assert_eq!(c.angle_deg().unwrap(), 0.0, "nothing moved");
     c.ping().unwrap();
     server.shutdown();
@@ -381,7 +383,7 @@ fn garbage_from_the_server_is_a_protocol_error() {
 }
 
 #[test]
-fn connections_beyond_the_limit_are_refused_and_shutdown_is_prompt() {
+fn a_full_server_evicts_a_connection_in_its_handshake_and_shutdown_is_prompt() {
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let cfg = ServerConfig {
         max_connections: 2,
@@ -390,11 +392,13 @@ fn connections_beyond_the_limit_are_refused_and_shutdown_is_prompt() {
     let server = serve(listener, SimulatedTurntable::default(), cfg).unwrap();
     let addr = server.local_addr();
     let mut session = RemoteTurntable::connect(addr, None, quick()).unwrap();
-    let _lurker = TcpStream::connect(addr).unwrap(); // in its handshake
+    let mut lurker = Raw::connect(addr); // in its handshake
     thread::sleep(Duration::from_millis(50));
     let mut third = Raw::connect(addr);
-    assert!(third.line().starts_with("ERR BUSY "));
-    // Shutdown with a session and a lurker open returns promptly.
+    // The lurker is closed to make room; the third gets in, and is told the table is busy.
+    assert_eq!(lurker.line(), "", "the lurker should be closed");
+    assert!(third.ask("VOXOCT-TT/1").starts_with("ERR BUSY "));
+    // Shutdown with a session open returns promptly.
     let start = Instant::now();
     server.shutdown();
     assert!(
@@ -404,6 +408,93 @@ fn connections_beyond_the_limit_are_refused_and_shutdown_is_prompt() {
     );
     assert!(session.ping().is_err());
     assert!(TcpStream::connect_timeout(&addr, Duration::from_millis(500)).is_err());
+}
+
+/// A table whose every turn panics (as `--sim-speed 1e-20` once did).
+struct Panicking;
+
+impl Turntable for Panicking {
+    fn rotate_by(&mut self, _: f64, _: Duration) -> Result<f64, TurntableError> {
+        panic!("cannot convert float seconds to Duration");
+    }
+    fn angle_deg(&mut self) -> Result<f64, TurntableError> {
+        Ok(0.0)
+    }
+    fn home(&mut self) -> Result<(), TurntableError> {
+        Ok(())
+    }
+}
+
+#[test]
+fn d12_a_panicking_request_gets_an_err_reply_and_releases_its_slot() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let cfg = ServerConfig {
+        max_connections: 8,
+        ..config(None)
+    };
+    let server = serve(listener, Panicking, cfg).unwrap();
+    // More clients than slots, one after the other: each gets an ERR reply, none BUSY.
+    for k in 0..12 {
+        let mut c = Raw::connect(server.local_addr());
+        let hello = c.ask("VOXOCT-TT/1");
+        assert!(hello.starts_with("OK "), "client {k}: {hello:?}");
+        let reply = c.ask("ROTATE 1");
+        assert!(reply.starts_with("ERR INTERNAL "), "client {k}: {reply:?}");
+        assert!(c.ask("QUIT").starts_with("OK BYE"), "client {k}");
+    }
+    server.shutdown();
+}
+
+#[test]
+fn d13_idle_connections_cannot_lock_out_a_client_with_the_token() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let cfg = ServerConfig {
+        max_connections: 8,
+        handshake_timeout: Duration::from_secs(30),
+        ..config(Some("s3cret"))
+    };
+    let server = serve(listener, SimulatedTurntable::default(), cfg).unwrap();
+    let addr = server.local_addr();
+    for round in 0..5 {
+        // Eight sockets that never send a handshake fill every slot…
+        let idle: Vec<TcpStream> = (0..8).map(|_| TcpStream::connect(addr).unwrap()).collect();
+        thread::sleep(Duration::from_millis(50));
+        // …and the client with the token still gets in at once.
+        let start = Instant::now();
+        let mut c = RemoteTurntable::connect(addr, Some("s3cret"), quick())
+            .unwrap_or_else(|e| panic!("round {round}: {e}"));
+        assert_eq!(c.rotate_by(90.0, T).unwrap(), 90.0);
+        assert!(
+            start.elapsed() < Duration::from_secs(2),
+            "{:?}",
+            start.elapsed()
+        );
+        drop(c);
+        drop(idle);
+    }
+    server.shutdown();
+}
+
+#[test]
+fn d12_nonsensical_simulated_speeds_are_refused() {
+    for speed in [1e-20, 0.0, -1.0, f64::NAN, f64::INFINITY, 1e300] {
+        assert!(
+            SimulatedTurntable::default().with_speed(speed).is_err(),
+            "{speed}"
+        );
+    }
+}
+
+#[test]
+fn d17_a_turn_refused_up_front_says_so_on_the_wire() {
+    let table = SimulatedTurntable::default().with_speed(90.0).unwrap();
+    let server = start(table, None);
+    let mut c = Raw::connect(server.local_addr());
+    assert!(c.ask("VOXOCT-TT/1").starts_with("OK "));
+    let reply = c.ask("ROTATE 90 100");
+    assert!(reply.starts_with("ERR TIMEOUT "), "{reply:?}");
+    assert!(reply.contains("refused before moving"), "{reply:?}");
+    server.shutdown();
 }
 
 #[test]

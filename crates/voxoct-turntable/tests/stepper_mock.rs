@@ -327,7 +327,8 @@ fn too_long_a_turn_is_refused_before_moving() {
     let mut table = rig.table(StepperConfig::default()); // 30°/s
     rig.take();
     let err = table.rotate_by(180.0, Duration::from_secs(2)).unwrap_err();
-    assert!(matches!(err, TurntableError::Timeout { .. }), "{err}");
+    assert!(matches!(err, TurntableError::TooSlow { .. }), "{err}");
+    assert!(err.to_string().contains("refused before moving"), "{err}");
     assert!(rising_steps(&rig.take()).is_empty());
     assert_eq!(table.position_microsteps(), 0);
 }
