@@ -12,8 +12,9 @@ use std::time::{Duration, Instant};
 use voxoct_core::glam::{UVec3, Vec3};
 use voxoct_core::{Octree, OctreeError, Triangle};
 use voxoct_depth::{
-    DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain, RecordedScan, ScannerConfig,
-    SensorConfig, Snapshot, kinect_v1_sigma, triangulate,
+    AxisOptions, CalibSnapshot, DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain,
+    RecordedScan, ScannerConfig, SensorConfig, Snapshot, alignment_residual, kinect_v1_sigma,
+    triangulate,
 };
 use voxoct_kinect::{DepthSource, SimulatedKinect, SourceError};
 use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions};
@@ -55,6 +56,9 @@ pub struct Params {
     /// With a solid mesh: fill what no frame could see ([`voxoct_depth::carve`]), so the solid
     /// closes over the unseen underside instead of leaking into a hollow shell there.
     pub carve: bool,
+    /// Measure how much the snapshots disagree under the rig
+    /// ([`Reconstruction::disagreement_m`]): a wrong tilt or axis shows as doubled contours.
+    pub check_agreement: bool,
 }
 
 impl Default for Params {
@@ -69,6 +73,7 @@ impl Default for Params {
             lod: 0,
             mesh: MeshOptions::smooth(),
             carve: true,
+            check_agreement: true,
             min_piece_fraction: 0.01,
         }
     }
@@ -92,6 +97,9 @@ pub enum Stage {
 pub struct Timings {
     /// [`Stage::Filter`].
     pub filter: Duration,
+    /// Measuring the snapshots' disagreement ([`Params::check_agreement`]), part of the
+    /// filter stage.
+    pub agreement: Duration,
     /// [`Stage::Triangulate`].
     pub triangulate: Duration,
     /// [`Stage::Insert`].
@@ -111,6 +119,21 @@ pub struct Reconstruction {
     pub triangles_in: usize,
     /// Time per stage.
     pub timings: Timings,
+    /// How much the snapshots disagree under the rig, metres: the mean point-to-plane
+    /// distance between overlapping snapshots ([`voxoct_depth::alignment_residual`]); `None`
+    /// when not measured or not measurable (too few points, one snapshot). Compare it with
+    /// [`disagreement_explained_m`].
+    pub disagreement_m: Option<f32>,
+}
+
+/// The largest snapshot disagreement ([`Reconstruction::disagreement_m`]) that the sensor's
+/// noise explains for a sensor at `distance_m` from the object: the residual is a mean of
+/// point-to-plane distances between two noisy readings (each of σ(z), so √2·σ apart, whose
+/// mean absolute value is √(2/π)·√2·σ ≈ 1.13·σ), plus half a millimetre for the
+/// triangulated planes' own error; twice that is the limit.
+#[must_use]
+pub fn disagreement_explained_m(distance_m: f32) -> f32 {
+    2.0 * (1.13 * kinect_v1_sigma(distance_m) + 0.0005)
 }
 
 /// Why a reconstruction failed.
@@ -203,6 +226,40 @@ pub fn reconstruct(
             })
     })?;
     timings.filter = t.elapsed();
+    let t_agreement = Instant::now();
+    let disagreement_m = if params.check_agreement && filtered.len() > 1 {
+        // At half resolution: a quarter of the memory and time, and still thousands of
+        // points per snapshot.
+        let calib: Vec<CalibSnapshot> = filtered
+            .iter()
+            .zip(&angles)
+            .map(|(frame, &angle_deg)| CalibSnapshot {
+                angle_deg,
+                frame: half_resolution(frame),
+            })
+            .collect();
+        let i = config.sensor.intrinsics;
+        let half = voxoct_depth::Intrinsics {
+            width: i.width.div_ceil(2),
+            height: i.height.div_ceil(2),
+            fx: i.fx * 0.5,
+            fy: i.fy * 0.5,
+            cx: i.cx * 0.5,
+            cy: i.cy * 0.5,
+        };
+        alignment_residual(
+            &calib,
+            &half,
+            &config.rig,
+            &config.clip,
+            &AxisOptions::default(),
+        )
+        .ok()
+        .map(|(r, _)| r)
+    } else {
+        None
+    };
+    timings.agreement = t_agreement.elapsed();
 
     on_stage(Stage::Triangulate);
     let t = Instant::now();
@@ -298,6 +355,7 @@ pub fn reconstruct(
         tree,
         triangles_in,
         timings,
+        disagreement_m,
     })
 }
 
@@ -349,6 +407,20 @@ pub fn simulate_scan(
         out.push(SnapshotFrames { angle_deg, frames });
     }
     Ok((config, out))
+}
+
+/// Every second pixel of every second row (pixel `(2u, 2v)` becomes `(u, v)`, so the
+/// principal point and focal lengths halve).
+fn half_resolution(frame: &DepthFrame) -> DepthFrame {
+    let (w, h) = (frame.width.div_ceil(2), frame.height.div_ceil(2));
+    let mut out = DepthFrame::empty(w, h, frame.unit_m);
+    let fw = frame.width as usize;
+    for (v, row) in out.data.chunks_exact_mut(w as usize).enumerate() {
+        for (u, d) in row.iter_mut().enumerate() {
+            *d = frame.data.get(2 * v * fw + 2 * u).copied().unwrap_or(0);
+        }
+    }
+    out
 }
 
 /// Applies `f` to every item with its index, in parallel with the `parallel` feature,

@@ -230,6 +230,7 @@ struct Args {
 struct Seconds {
     load: f64,
     filter: f64,
+    agreement: f64,
     triangulate: f64,
     insert: f64,
     mesh: f64,
@@ -255,6 +256,10 @@ struct Stats {
     mesh_volume_m3: f64,
     mesh_area_m2: f64,
     closed_manifold: bool,
+    /// How much the snapshots disagree under the rig, metres (null: not measurable).
+    snapshot_disagreement_m: Option<f32>,
+    /// What the sensor's noise explains; above it a warning is printed.
+    snapshot_disagreement_limit_m: f32,
     peak_rss_bytes: u64,
     threads: usize,
     seconds: Seconds,
@@ -354,6 +359,7 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
         lod: args.lod,
         mesh: mesh_options(args),
         carve: !args.no_carve,
+        check_agreement: true,
         min_piece_fraction: args.min_piece,
     };
     let mut bar: Option<ProgressBar> = None;
@@ -371,8 +377,21 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
         tree,
         triangles_in,
         timings,
+        disagreement_m,
     } = result.map_err(|e| e.to_string())?;
+    let agreement_limit_m =
+        voxoct::pipeline::disagreement_explained_m(settings.config.rig.sensor_position_m.length());
+    if let Some(d) = disagreement_m.filter(|&d| d > agreement_limit_m) {
+        eprintln!(
+            "warning: the snapshots disagree by {:.1} mm, more than the sensor's noise explains ({:.1} mm): \
+             the rig (tilt, sensor position) is off and the mesh may show doubled contours; \
+             fix it with `calibrate --input DIR --write` (record with --record-to first)",
+            d * 1e3,
+            agreement_limit_m * 1e3
+        );
+    }
     seconds.filter = timings.filter.as_secs_f64();
+    seconds.agreement = timings.agreement.as_secs_f64();
     seconds.triangulate = timings.triangulate.as_secs_f64();
     seconds.insert = timings.insert.as_secs_f64();
     seconds.mesh = timings.mesh.as_secs_f64();
@@ -425,6 +444,8 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
         mesh_volume_m3: mstats.volume,
         mesh_area_m2: mstats.area,
         closed_manifold: closed.is_ok(),
+        snapshot_disagreement_m: disagreement_m,
+        snapshot_disagreement_limit_m: agreement_limit_m,
         peak_rss_bytes: peak_rss_bytes(),
         threads: rayon::current_num_threads(),
         seconds,
