@@ -71,6 +71,7 @@ pub use voxoct_core::glam;
 pub use voxoct_core::{Cell, GridSpec, Octree};
 
 mod bitbox;
+mod export;
 mod field;
 mod march;
 mod mesh;
@@ -79,6 +80,7 @@ mod par;
 mod smooth;
 mod tables;
 
+pub use export::{platform_to_print, to_print_frame, vertex_hits};
 pub use field::FILL_LIMIT;
 pub use mesh::{Mesh, MeshStats, TopologyError};
 pub use options::{Floor, MeshError, MeshOptions, Placement, Taubin};
