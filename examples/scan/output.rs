@@ -1,0 +1,113 @@
+//! The output mesh file: its format (from `--out`'s extension or `--format`), its frame
+//! (Z up for printing unless `--up y`) and the bytes written.
+
+use std::path::Path;
+
+use clap::ValueEnum;
+use voxoct::mesh::{Mesh, Octree, to_print_frame, vertex_hits};
+use voxoct::stl::{MeshFormat, MeshRef, StlFormat, WriteOptions};
+
+use crate::{Args, Units};
+
+/// Which axis of the written file points up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Up {
+    /// Z up, base on z = 0, centred in x and y: what slicers and viewers expect.
+    Z,
+    /// Y up: the library's platform frame (SCAN_FORMAT.md), unchanged.
+    Y,
+}
+
+/// The format `--format` names, else the one `--out`'s extension names.
+pub fn format(args: &Args) -> Result<MeshFormat, String> {
+    match &args.format {
+        Some(name) => name.parse().map_err(|e| format!("--format: {e}")),
+        None => MeshFormat::from_path(&args.out).map_err(|e| {
+            format!(
+                "--out {}: {e} (or choose one with --format)",
+                args.out.display()
+            )
+        }),
+    }
+}
+
+/// Rejects output flags that cannot work, before any work is done.
+pub fn check(args: &Args) -> Result<(), String> {
+    let format = format(args)?;
+    if args.ascii && format != MeshFormat::Stl {
+        return Err(format!(
+            "--ascii is for STL, but the output format is {format}"
+        ));
+    }
+    if let Some(p) = &args.preview
+        && !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        return Err(format!(
+            "--preview {}: the preview is a PNG picture; name a .png file",
+            p.display()
+        ));
+    }
+    Ok(())
+}
+
+/// File units per metre.
+pub fn scale(args: &Args) -> f32 {
+    match args.units {
+        Units::Mm => 1000.0,
+        Units::M => 1.0,
+    }
+}
+
+/// Writes `mesh` (platform frame, metres) to `--out` in the chosen format and frame,
+/// atomically; a PLY gets per-vertex hit counts from `tree`.
+pub fn write(args: &Args, mesh: &Mesh, tree: &Octree) -> Result<(), String> {
+    let format = format(args)?;
+    let hits = (format == MeshFormat::Ply).then(|| vertex_hits(tree, &mesh.vertices));
+    let print;
+    let out = match args.up {
+        Up::Z => {
+            print = to_print_frame(mesh);
+            &print
+        }
+        Up::Y => mesh,
+    };
+    let opts = WriteOptions {
+        scale: scale(args),
+        stl: if args.ascii {
+            StlFormat::Ascii
+        } else {
+            StlFormat::Binary
+        },
+    };
+    let m = MeshRef {
+        vertices: &out.vertices,
+        triangles: &out.triangles,
+        hits: hits.as_deref(),
+    };
+    write_file(&args.out, format, m, &opts)
+}
+
+/// The one place bytes reach the output file (atomically: no partial file at `path`).
+fn write_file(
+    path: &Path,
+    format: MeshFormat,
+    mesh: MeshRef<'_>,
+    opts: &WriteOptions,
+) -> Result<(), String> {
+    voxoct::stl::write_mesh_file(path, format, mesh, opts)
+        .map_err(|e| format!("writing {}: {e}", path.display()))
+}
+
+/// How the summary names what was written, e.g. `3mf, mm, Z up`.
+pub fn describe(args: &Args) -> String {
+    let format = format(args).map_or_else(|_| "?".into(), |f| f.to_string());
+    let units = match args.units {
+        Units::Mm => "mm",
+        Units::M => "m",
+    };
+    let up = match args.up {
+        Up::Z => "Z up, base on z = 0",
+        Up::Y => "Y up (platform frame)",
+    };
+    format!("{format}, {units}, {up}")
+}
