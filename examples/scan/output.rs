@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use clap::ValueEnum;
-use voxoct::mesh::{Mesh, Octree, to_print_frame, vertex_hits};
+use voxoct::mesh::{Mesh, Octree, print_frame_vertices, vertex_hits};
 use voxoct::stl::{MeshFormat, MeshRef, StlFormat, WriteOptions};
 
 use crate::{Args, Units};
@@ -63,13 +63,14 @@ pub fn scale(args: &Args) -> f32 {
 pub fn write(args: &Args, mesh: &Mesh, tree: &Octree) -> Result<(), String> {
     let format = format(args)?;
     let hits = (format == MeshFormat::Ply).then(|| vertex_hits(tree, &mesh.vertices));
+    // The triangles do not change: only the vertices are copied into the print frame.
     let print;
-    let out = match args.up {
+    let vertices = match args.up {
         Up::Z => {
-            print = to_print_frame(mesh);
+            print = print_frame_vertices(&mesh.vertices);
             &print
         }
-        Up::Y => mesh,
+        Up::Y => &mesh.vertices,
     };
     let opts = WriteOptions {
         scale: scale(args),
@@ -80,8 +81,8 @@ pub fn write(args: &Args, mesh: &Mesh, tree: &Octree) -> Result<(), String> {
         },
     };
     let m = MeshRef {
-        vertices: &out.vertices,
-        triangles: &out.triangles,
+        vertices,
+        triangles: &mesh.triangles,
         hits: hits.as_deref(),
     };
     write_file(&args.out, format, m, &opts)

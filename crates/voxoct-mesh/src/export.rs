@@ -48,24 +48,31 @@ pub fn platform_to_print(v: Vec3) -> Vec3 {
 /// ```
 #[must_use]
 pub fn to_print_frame(mesh: &Mesh) -> Mesh {
-    let Some(&first) = mesh.vertices.first() else {
-        return mesh.clone();
+    Mesh {
+        vertices: print_frame_vertices(&mesh.vertices),
+        triangles: mesh.triangles.clone(),
+    }
+}
+
+/// The vertices of [`to_print_frame`] alone, for writers that borrow the triangles of the
+/// original mesh instead of copying them (the triangles do not change).
+#[must_use]
+pub fn print_frame_vertices(vertices: &[Vec3]) -> Vec<Vec3> {
+    let Some(&first) = vertices.first() else {
+        return Vec::new();
     };
     let p0 = platform_to_print(first);
-    let (lo, hi) = mesh.vertices.iter().fold((p0, p0), |(lo, hi), &v| {
+    let (lo, hi) = vertices.iter().fold((p0, p0), |(lo, hi), &v| {
         let p = platform_to_print(v);
         (lo.min(p), hi.max(p))
     });
     let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
     let offset = DVec3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), lo.z);
-    let mut vertices = Vec::new();
-    par::map_into(&mut vertices, mesh.vertices.len(), |i| {
-        (platform_to_print(mesh.vertices[i]).as_dvec3() - offset).as_vec3()
+    let mut out = Vec::new();
+    par::map_into(&mut out, vertices.len(), |i| {
+        (platform_to_print(vertices[i]).as_dvec3() - offset).as_vec3()
     });
-    Mesh {
-        vertices,
-        triangles: mesh.triangles.clone(),
-    }
+    out
 }
 
 /// A confidence for every vertex of a mesh made from `octree` (vertices in the octree's

@@ -80,7 +80,7 @@ mod par;
 mod smooth;
 mod tables;
 
-pub use export::{platform_to_print, to_print_frame, vertex_hits};
+pub use export::{platform_to_print, print_frame_vertices, to_print_frame, vertex_hits};
 pub use field::FILL_LIMIT;
 pub use mesh::{Mesh, MeshStats, TopologyError};
 pub use options::{Floor, MeshError, MeshOptions, Placement, Taubin};
