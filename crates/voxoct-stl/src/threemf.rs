@@ -323,8 +323,17 @@ pub fn read_3mf<R: Read + Seek>(r: R) -> Result<ReadMesh, StlError> {
         }
         Err(e) => return Err(e.into()),
     };
-    let limited = BufReader::with_capacity(1 << 16, file.take(MAX_PART_BYTES));
-    parse_model(limited, &part)
+    let mut limited = BufReader::with_capacity(1 << 16, file.take(MAX_PART_BYTES + 1));
+    let mesh = parse_model(&mut limited, &part);
+    if limited.get_ref().limit() == 0 {
+        // Inflated past the limit: whatever was parsed is a cut-off model.
+        return Err(StlError::TooLarge {
+            what: "3MF model part bytes (inflated)",
+            count: MAX_PART_BYTES + 1,
+            limit: MAX_PART_BYTES,
+        });
+    }
+    mesh
 }
 
 fn parse_model<B: BufRead>(input: B, part: &str) -> Result<ReadMesh, StlError> {
