@@ -267,3 +267,44 @@ pub fn read_mesh_file(path: impl AsRef<Path>) -> Result<ReadMesh, StlError> {
     })()
     .map_err(|e: StlError| e.in_file(path))
 }
+
+/// Appends the decimal digits of `v` (what `write!("{v}")` gives, without the formatting
+/// machinery: the text writers spend most of their time on triangle indices).
+#[inline]
+pub(crate) fn push_u64(buf: &mut Vec<u8>, mut v: u64) {
+    let mut digits = [0u8; 20];
+    let mut i = digits.len();
+    loop {
+        i -= 1;
+        digits[i] = b'0' + (v % 10) as u8;
+        v /= 10;
+        if v == 0 {
+            break;
+        }
+    }
+    buf.extend_from_slice(&digits[i..]);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::push_u64;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn push_u64_writes_what_display_writes(v in any::<u64>()) {
+            let mut buf = b"x".to_vec();
+            push_u64(&mut buf, v);
+            prop_assert_eq!(buf, format!("x{v}").into_bytes());
+        }
+    }
+
+    #[test]
+    fn push_u64_edges() {
+        for v in [0, 9, 10, 99, 100, u64::from(u32::MAX), u64::MAX] {
+            let mut buf = Vec::new();
+            push_u64(&mut buf, v);
+            assert_eq!(buf, v.to_string().into_bytes());
+        }
+    }
+}

@@ -5,7 +5,7 @@ use std::io::{BufWriter, Write};
 use voxoct_core::glam::Vec3;
 
 use crate::StlError;
-use crate::format::vertex_normals;
+use crate::format::{push_u64, vertex_normals};
 
 /// Writes an indexed mesh as OBJ: one `v` and one `vn` (area-weighted vertex normal) per
 /// vertex, one `f a//a b//b c//c` per triangle (1-based, counter-clockwise seen from
@@ -34,9 +34,20 @@ pub(crate) fn write_obj<W: Write>(
     for n in vertex_normals(vertices, triangles) {
         writeln!(w, "vn {} {} {}", n.x, n.y, n.z)?;
     }
-    for t in triangles {
-        let [a, b, c] = t.map(|i| u64::from(i) + 1);
-        writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
+    let mut line = Vec::with_capacity(1 << 16);
+    for chunk in triangles.chunks(1024) {
+        line.clear();
+        for t in chunk {
+            line.push(b'f');
+            for i in t.map(|i| u64::from(i) + 1) {
+                line.push(b' ');
+                push_u64(&mut line, i);
+                line.extend_from_slice(b"//");
+                push_u64(&mut line, i);
+            }
+            line.push(b'\n');
+        }
+        w.write_all(&line)?;
     }
     w.flush()?;
     Ok(())

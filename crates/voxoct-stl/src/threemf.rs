@@ -11,7 +11,7 @@ use zip::write::SimpleFileOptions;
 use zip::{CompressionMethod, ZipArchive, ZipWriter};
 
 use crate::StlError;
-use crate::format::{MAX_ELEMENTS, ReadMesh};
+use crate::format::{MAX_ELEMENTS, ReadMesh, push_u64};
 
 /// The 3MF core namespace (the model part's default namespace).
 pub const CORE_NAMESPACE: &str = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02";
@@ -139,8 +139,19 @@ pub(crate) fn write_3mf<W: Write>(
             )?;
         }
         x.write_all(b"    </vertices>\n    <triangles>\n")?;
-        for [a, b, c] in triangles {
-            writeln!(x, "     <triangle v1=\"{a}\" v2=\"{b}\" v3=\"{c}\"/>")?;
+        let mut line = Vec::with_capacity(1 << 16);
+        for chunk in triangles.chunks(1024) {
+            line.clear();
+            for &[a, b, c] in chunk {
+                line.extend_from_slice(b"     <triangle v1=\"");
+                push_u64(&mut line, a.into());
+                line.extend_from_slice(b"\" v2=\"");
+                push_u64(&mut line, b.into());
+                line.extend_from_slice(b"\" v3=\"");
+                push_u64(&mut line, c.into());
+                line.extend_from_slice(b"\"/>\n");
+            }
+            x.write_all(&line)?;
         }
         x.write_all(
             b"    </triangles>\n   </mesh>\n  </object>\n </resources>\n \
