@@ -7,8 +7,9 @@
 //! ```
 //!
 //! The stages: capture (or load) → filter → back-project, transform, clip → triangulate →
-//! octree insertion → marching tetrahedra → mesh file (Z up for printing). Each stage is a call into one voxoct crate;
-//! this file only parses the command line, times the stages and reports.
+//! octree insertion → marching tetrahedra → mesh file (Z up for printing, `output.rs`). Each
+//! stage is a call into one voxoct crate; this file only parses the command line, times the
+//! stages and reports.
 
 mod output;
 mod preview;
@@ -500,7 +501,6 @@ fn check_args(args: &Args) -> Result<(), String> {
     if args.turntable.is_some() && !args.kinect {
         return Err("--turntable is for live scans: add --kinect".into());
     }
-    output::check(args)?;
     if args.out.as_os_str().is_empty() {
         return Err("--out must name a file".into());
     }
@@ -510,6 +510,7 @@ fn check_args(args: &Args) -> Result<(), String> {
             args.out.display()
         ));
     }
+    output::check(args)?;
     Ok(())
 }
 
