@@ -1,4 +1,4 @@
-//! `scan`: a full 3D scan, from depth frames to a watertight, printable STL.
+//! `scan`: a full 3D scan, from depth frames to a watertight, printable mesh (STL, 3MF, PLY, OBJ).
 //!
 //! ```sh
 //! cargo run --release --example scan                       # simulated scan of a built-in model → scan.stl
@@ -7,10 +7,12 @@
 //! ```
 //!
 //! The stages: capture (or load) → filter → back-project, transform, clip → triangulate →
-//! octree insertion → marching tetrahedra → STL. Each stage is a call into one voxoct crate;
-//! this file only parses the command line, times the stages and reports.
+//! octree insertion → marching tetrahedra → mesh file (Z up for printing, `output.rs`). Each
+//! stage is a call into one voxoct crate; this file only parses the command line, times the
+//! stages and reports.
 
 mod budget;
+mod output;
 mod outputs;
 mod preview;
 mod source;
@@ -63,9 +65,16 @@ struct Args {
         help_heading = "Source"
     )]
     degrees_per_snapshot: Option<f32>,
-    /// Simulated scan of your own mesh (STL, binary or ASCII, or OBJ).
+    /// Simulated scan of your own mesh (STL, OBJ, PLY or 3MF), read as slicers write it:
+    /// Z up, millimetres (3MF: its own unit); it keeps its size and orientation.
     #[arg(long, value_name = "FILE", help_heading = "Source")]
     model: Option<PathBuf>,
+    /// Units of the --model file's numbers (default: mm, or the unit a 3MF file states).
+    #[arg(long, value_enum, value_name = "UNIT", help_heading = "Source")]
+    model_units: Option<source::ModelUnits>,
+    /// Up axis of the --model file.
+    #[arg(long, value_enum, default_value = "z", help_heading = "Source")]
+    model_up: output::Up,
     /// Simulated scan of a built-in model (see --list-models).
     #[arg(
         long,
@@ -196,7 +205,8 @@ struct Args {
     min_component: Option<usize>,
 
     // ---- output ----------------------------------------------------------------------------
-    /// The STL file to write (`-`: standard output).
+    /// The mesh file to write; its extension picks the format: .stl, .3mf, .ply, .obj
+    /// (`-`: standard output, with --format).
     #[arg(
         long,
         value_name = "FILE",
@@ -204,12 +214,19 @@ struct Args {
         help_heading = "Output"
     )]
     out: PathBuf,
+    /// Format of --out regardless of its extension: stl, 3mf, ply or obj.
+    #[arg(long, value_name = "FORMAT", help_heading = "Output")]
+    format: Option<String>,
     /// Write ASCII STL instead of binary.
     #[arg(long, help_heading = "Output")]
     ascii: bool,
-    /// Units of the STL numbers.
+    /// Units of the file's numbers (3MF records them).
     #[arg(long, value_enum, default_value = "mm", help_heading = "Output")]
     units: Units,
+    /// Up axis of the file: z (for printing: base on z = 0, centred in x and y) or y (the
+    /// library's platform frame).
+    #[arg(long, value_enum, default_value = "z", help_heading = "Output")]
+    up: output::Up,
     /// Write figures of the run as one JSON object.
     #[arg(long, value_name = "FILE.json", help_heading = "Output")]
     stats: Option<PathBuf>,
@@ -400,22 +417,10 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
         return Err(budget::explain_empty(args, triangles_in, tree.leaf_count()));
     }
 
-    // 6. Write the STL, the preview and the stats; they replace the old files together.
+    // 6. Write the mesh, the preview and the stats; they replace the old files together.
     let t = Instant::now();
-    let scale = match args.units {
-        Units::Mm => 1000.0,
-        Units::M => 1.0,
-    };
-    let format = if args.ascii {
-        voxoct::stl::StlFormat::Ascii
-    } else {
-        voxoct::stl::StlFormat::Binary
-    };
     outputs
-        .write(out, |w| {
-            voxoct::stl::write(w, &mesh.vertices, &mesh.triangles, format, scale)
-                .map_err(std::io::Error::other)
-        })
+        .write(out, |w| output::write(args, &mesh, &tree, w))
         .map_err(|e| e.to_string())?;
     seconds.write = t.elapsed().as_secs_f64();
     if let Some(id) = preview_out {
@@ -562,6 +567,7 @@ fn check_args(args: &Args) -> Result<(), String> {
     if args.kinect_depth.is_some() && !args.kinect {
         return Err("--kinect-depth is for live scans: add --kinect".into());
     }
+    output::check(args)?;
     Ok(())
 }
 
@@ -601,13 +607,11 @@ fn summary(args: &Args, s: &Stats) {
         t.total,
         s.peak_rss_bytes as f64 / 1e6
     );
+    eprintln!("source: {}", s.source);
     eprintln!(
         "watertight: {}; wrote {} ({})",
         if s.closed_manifold { "yes" } else { "NO" },
         args.out.display(),
-        match args.units {
-            Units::Mm => "mm",
-            Units::M => "m",
-        }
+        output::describe(args)
     );
 }

@@ -10,6 +10,28 @@ use voxoct::turntable::{SimulatedTurntable, Turntable};
 
 use crate::{Args, Progress, budget};
 
+/// Units of a `--model` file's numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModelUnits {
+    /// Millimetres: how slicers and CAD tools write STL, OBJ and PLY files for printing.
+    Mm,
+    /// Metres: the library's own unit.
+    M,
+    /// Inches.
+    In,
+}
+
+impl ModelUnits {
+    /// Metres per unit.
+    fn metres(self) -> f64 {
+        match self {
+            Self::Mm => 0.001,
+            Self::M => 1.0,
+            Self::In => 0.0254,
+        }
+    }
+}
+
 /// Microsteps per turntable revolution of the simulated table: a 1.8° motor at quarter
 /// stepping (0.45° per step), the thesis's setting.
 const SIM_MICROSTEPS_PER_REV: u64 = 800;
@@ -226,30 +248,6 @@ fn simulate(
     config: Option<ScannerConfig>,
     progress: &Progress,
 ) -> Result<Acquired, String> {
-    let (model, name) = match &args.model {
-        Some(path) => {
-            check_model_file(path)?;
-            let mut m = voxoct::kinect::load_model(path).map_err(|e| format!("--model: {e}"))?;
-            if m.bounds().is_none_or(|b| {
-                b.min.y < -1e-6 || b.max.y > 0.4 || b.min.x.abs().max(b.max.x.abs()) > 0.15
-            }) {
-                // Not already standing on the platform inside the default clip box: place it there.
-                m.place_on_platform(0.12)
-                    .map_err(|e| format!("--model {}: {e}", path.display()))?;
-            }
-            (m, format!("simulated Kinect v1, model {}", path.display()))
-        }
-        None => {
-            let m = Model::builtin(&args.builtin).ok_or_else(|| {
-                format!(
-                    "--builtin {}: unknown model; choose one of {}",
-                    args.builtin,
-                    Model::BUILTIN_NAMES.join(", ")
-                )
-            })?;
-            (m, format!("simulated Kinect v1, built-in {}", args.builtin))
-        }
-    };
     let config = config.unwrap_or_else(|| {
         let sim = SimConfig::default();
         ScannerConfig {
@@ -261,6 +259,27 @@ fn simulate(
             ..ScannerConfig::default()
         }
     });
+    let (model, name) = match &args.model {
+        Some(path) => load_model(path, args, &config)?,
+        None => {
+            let m = Model::builtin(&args.builtin).ok_or_else(|| {
+                format!(
+                    "--builtin {}: unknown model; choose one of {}",
+                    args.builtin,
+                    Model::BUILTIN_NAMES.join(", ")
+                )
+            })?;
+            let size = m
+                .bounds()
+                .map_or(Default::default(), |b| (b.max - b.min) * 1000.0);
+            let name = format!(
+                "simulated Kinect v1, built-in {}, {:.1} × {:.1} × {:.1} mm (width × depth × \
+                 height)",
+                args.builtin, size.x, size.z, size.y
+            );
+            (m, name)
+        }
+    };
     let sim_config = SimConfig {
         intrinsics: config.sensor.intrinsics,
         rig: config.rig,
@@ -315,6 +334,75 @@ fn check_model_file(path: &Path) -> Result<(), String> {
         ));
     }
     Ok(())
+}
+
+/// Loads `--model` as its file's convention says (`--model-units`, `--model-up`), standing on
+/// the platform at its own size, and checks that it fits the clip box while it turns.
+fn load_model(path: &Path, args: &Args, config: &ScannerConfig) -> Result<(Model, String), String> {
+    let convention = voxoct::kinect::ModelConvention {
+        metres_per_unit: args.model_units.map(ModelUnits::metres),
+        up: match args.model_up {
+            crate::output::Up::Z => voxoct::kinect::ModelUp::Z,
+            crate::output::Up::Y => voxoct::kinect::ModelUp::Y,
+        },
+    };
+    check_model_file(path)?;
+    let m =
+        voxoct::kinect::load_model_as(path, &convention).map_err(|e| format!("--model: {e}"))?;
+    let b = m
+        .bounds()
+        .ok_or_else(|| format!("--model {}: no vertices", path.display()))?;
+    let size_mm = (b.max - b.min) * 1000.0;
+    let up = match args.model_up {
+        crate::output::Up::Z => "z",
+        crate::output::Up::Y => "y",
+    };
+    let units = args
+        .model_units
+        .map_or("mm, or the file's own unit", |u| match u {
+            ModelUnits::Mm => "mm",
+            ModelUnits::M => "m",
+            ModelUnits::In => "in",
+        });
+    let described = format!(
+        "{:.1} × {:.1} × {:.1} mm (width × depth × height; read as --model-units {units}, \
+         --model-up {up})",
+        size_mm.x, size_mm.z, size_mm.y
+    );
+    // The model turns about the Y axis: its farthest point from the axis sweeps a circle.
+    let radius = m
+        .vertices
+        .iter()
+        .map(|v| v.x.hypot(v.z))
+        .fold(0.0f32, f32::max);
+    let clip = config.clip;
+    let room = [-clip.min.x, clip.max.x, -clip.min.z, clip.max.z]
+        .into_iter()
+        .fold(f32::INFINITY, f32::min);
+    if radius > room || b.max.y > clip.max.y {
+        return Err(format!(
+            "--model {} is {described}: it does not fit the clip box while it turns (radius \
+             {:.1} mm of {:.1} mm, height up to {:.1} mm); give the file's units and up axis \
+             with --model-units and --model-up, or a larger [clip] with --config",
+            path.display(),
+            radius * 1000.0,
+            room * 1000.0,
+            clip.max.y * 1000.0
+        ));
+    }
+    let largest = size_mm.max_element();
+    if largest < 10.0 * args.leaf * 1000.0 {
+        return Err(format!(
+            "--model {} is {described}: too small to scan at --leaf {} m; is the file in \
+             metres or inches (--model-units m / in)?",
+            path.display(),
+            args.leaf
+        ));
+    }
+    Ok((
+        m,
+        format!("simulated Kinect v1, model {}, {described}", path.display()),
+    ))
 }
 
 /// Live capture: a Kinect v1 through libfreenect and a networked turntable.

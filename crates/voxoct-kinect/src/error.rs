@@ -46,20 +46,23 @@ pub enum SourceError {
         message: String,
     },
 
-    /// An STL file could not be decoded.
-    #[error("cannot load STL model {path}: {source}")]
+    /// A model file (STL, PLY or 3MF) could not be decoded.
+    #[error("cannot load model {path}: {source}")]
     Stl {
-        /// The STL file.
+        /// The model file.
         path: PathBuf,
         /// The decoder's error.
         #[source]
         source: voxoct_stl::StlError,
     },
 
-    /// A model file's extension is neither `.stl` nor `.obj`.
+    /// A model file's extension is not one of `.stl`, `.3mf`, `.ply`, `.obj`.
     ///
-    /// How to fix: convert the model to STL or OBJ, or rename it if the extension is wrong.
-    #[error("{path}: unknown model format (expected a .stl or .obj file)")]
+    /// How to fix: convert the model to one of them, or rename it if the extension is wrong.
+    #[error(
+        "{path}: unknown model format (expected {})",
+        voxoct_stl::MeshFormat::SUPPORTED
+    )]
     UnknownModelFormat {
         /// The model file.
         path: PathBuf,

@@ -76,7 +76,7 @@ pub use fakenect::{
 pub use glam;
 #[cfg(feature = "freenect")]
 pub use kinect::{KinectOptions, KinectSource};
-pub use model::{Model, load_model, parse_obj};
+pub use model::{Model, ModelConvention, ModelUp, load_model, load_model_as, parse_obj};
 pub use sim::{NoiseModel, SimConfig, SimTimings, SimulatedKinect};
 pub use voxoct_depth::{DepthFrame, Intrinsics, Rig};
 

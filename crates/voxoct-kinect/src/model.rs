@@ -1,5 +1,5 @@
 //! Models to put on the simulated turntable: procedural closed meshes generated in code, and
-//! STL / OBJ files.
+//! STL / OBJ / PLY / 3MF files.
 
 use std::f32::consts::TAU;
 use std::path::Path;
@@ -163,8 +163,12 @@ impl Model {
     /// Turns a Z-up model (the usual convention of STL files for printing) into the Y-up
     /// platform frame: `(x, y, z) → (x, z, -y)`, a proper rotation, so the winding survives.
     #[must_use]
-    pub fn z_up_to_y_up(self) -> Self {
-        self.rotated(Mat3::from_rotation_x(-std::f32::consts::FRAC_PI_2))
+    pub fn z_up_to_y_up(mut self) -> Self {
+        // The rotation by -90° about +X, written out so that it is exact in f32.
+        for v in &mut self.vertices {
+            *v = Vec3::new(v.x, v.z, -v.y);
+        }
+        self
     }
 
     /// Places the model on the platform: scales it uniformly to `height_m` tall (along +Y),
@@ -200,6 +204,24 @@ impl Model {
             *v = (*v - c) * s;
         }
         Ok(())
+    }
+
+    /// Moves the model, without scaling or turning it, so that its bounding box is centred on
+    /// the turntable axis (x = z = 0) and its lowest point is at y = 0. Nothing happens to
+    /// a model without vertices.
+    pub fn stand_on_platform(&mut self) {
+        let Some(b) = self.bounds() else {
+            return;
+        };
+        let c = Vec3::new(
+            (b.min.x + b.max.x) * 0.5,
+            b.min.y,
+            (b.min.z + b.max.z) * 0.5,
+        )
+        .as_dvec3();
+        for v in &mut self.vertices {
+            *v = (v.as_dvec3() - c).as_vec3();
+        }
     }
 
     /// Checks that the model can be ray-cast: at least one triangle, every index in range,
@@ -244,10 +266,10 @@ impl Model {
     }
 }
 
-/// Loads a model file: STL (binary or ASCII, through `voxoct_stl`) or OBJ, chosen by the
-/// extension (case-insensitive). The model keeps the file's coordinates (STL files for
-/// printing are usually in millimetres and Z-up: see [`Model::z_up_to_y_up`] and
-/// [`Model::place_on_platform`]).
+/// Loads a model file, the format chosen by the extension (case-insensitive): STL (binary or
+/// ASCII), OBJ, PLY (ASCII or binary) or 3MF, all through `voxoct_stl`. The model keeps the
+/// file's coordinates and units (STL files for printing are usually in millimetres and
+/// Z-up: [`load_model_as`] converts them to the platform frame).
 ///
 /// ```
 /// use voxoct_kinect::{load_model, SimConfig, SimulatedKinect};
@@ -264,127 +286,153 @@ impl Model {
 /// ```
 ///
 /// # Errors
-/// [`SourceError::Io`], [`SourceError::Stl`], [`SourceError::Obj`] (with the line number),
-/// [`SourceError::UnknownModelFormat`], or [`SourceError::BadModel`] for a file without
-/// triangles or with non-finite coordinates.
+/// [`SourceError::Io`], [`SourceError::Stl`] (STL, PLY and 3MF decoding),
+/// [`SourceError::Obj`] (with the line number), [`SourceError::UnknownModelFormat`], or
+/// [`SourceError::BadModel`] for a file without triangles or with non-finite coordinates.
 pub fn load_model(path: &Path) -> Result<Model, SourceError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let model = match ext.as_deref() {
-        Some("stl") => {
-            let tris: Vec<voxoct_core::Triangle> =
-                voxoct_stl::read_file(path).map_err(|source| SourceError::Stl {
-                    path: path.to_owned(),
-                    source,
-                })?;
-            Model::from_triangles(&tris)
+    load_model_file(path).map(|(model, _)| model)
+}
+
+/// [`load_model`], and the metres per file unit when the file states it (3MF).
+fn load_model_file(path: &Path) -> Result<(Model, Option<f64>), SourceError> {
+    let format =
+        voxoct_stl::MeshFormat::from_path(path).map_err(|_| SourceError::UnknownModelFormat {
+            path: path.to_owned(),
+        })?;
+    let io = |source| SourceError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let decoder = |source| SourceError::Stl {
+        path: path.to_owned(),
+        source,
+    };
+    let (model, unit) = match format {
+        voxoct_stl::MeshFormat::Obj => {
+            let text = std::fs::read_to_string(path).map_err(io)?;
+            (parse_obj(&text, path)?, None)
         }
-        Some("obj") => {
-            let text = std::fs::read_to_string(path).map_err(|source| SourceError::Io {
-                path: path.to_owned(),
-                source,
-            })?;
-            parse_obj(&text, path)?
+        voxoct_stl::MeshFormat::Stl => {
+            // The soup as it is (no welding): the simulator ray-casts triangles.
+            let bytes = std::fs::read(path).map_err(io)?;
+            let tris = voxoct_stl::parse(&bytes).map_err(decoder)?;
+            (Model::from_triangles(&tris), None)
         }
-        _ => {
-            return Err(SourceError::UnknownModelFormat {
-                path: path.to_owned(),
-            });
+        voxoct_stl::MeshFormat::ThreeMf => {
+            let file = std::io::BufReader::new(std::fs::File::open(path).map_err(io)?);
+            let m = voxoct_stl::threemf::read_3mf(file).map_err(decoder)?;
+            let model = Model {
+                vertices: m.vertices,
+                indices: m.triangles,
+            };
+            (model, m.metres_per_unit)
+        }
+        voxoct_stl::MeshFormat::Ply => {
+            let bytes = std::fs::read(path).map_err(io)?;
+            let m = voxoct_stl::ply::parse_ply(&bytes).map_err(decoder)?;
+            let model = Model {
+                vertices: m.vertices,
+                indices: m.triangles,
+            };
+            (model, None)
         }
     };
+    model.validate(&path.display().to_string())?;
+    Ok((model, unit))
+}
+
+/// Which axis of a model file points up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ModelUp {
+    /// +Z up: how slicers and CAD tools write files for printing (the default).
+    #[default]
+    Z,
+    /// +Y up: the platform frame itself (and many graphics tools).
+    Y,
+}
+
+/// How to read a model file's numbers: its unit and its up axis.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ModelConvention {
+    /// Metres per file unit; `None` takes the file's own unit where it states one (3MF) and
+    /// millimetres (0.001) otherwise.
+    pub metres_per_unit: Option<f64>,
+    /// The file's up axis.
+    pub up: ModelUp,
+}
+
+impl ModelConvention {
+    /// Metres per unit of a file that states `file_unit` (or not).
+    #[must_use]
+    pub fn metres_per_unit_for(&self, file_unit: Option<f64>) -> f64 {
+        self.metres_per_unit.or(file_unit).unwrap_or(0.001)
+    }
+}
+
+/// Loads a model file as slicers write it and stands it on the platform, keeping its size
+/// and orientation: the numbers are converted to metres (see [`ModelConvention`]), a Z-up
+/// file is turned Y-up by [`Model::z_up_to_y_up`] (a proper rotation), and the model is
+/// moved — not scaled — so that its bounding box is centred on the turntable axis and its
+/// lowest point is on the platform (y = 0).
+///
+/// ```
+/// use voxoct_kinect::{load_model_as, ModelConvention};
+/// let path = std::env::temp_dir().join("voxoct-kinect-doc-tower.obj");
+/// // 40 mm wide, 70 mm tall along +Z.
+/// std::fs::write(&path, "v 0 0 0\nv 40 0 0\nv 0 40 0\nv 0 0 70\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")?;
+/// let model = load_model_as(&path, &ModelConvention::default())?;
+/// let b = model.bounds().unwrap();
+/// assert!((b.max.y - 0.07).abs() < 1e-6 && b.min.y == 0.0); // 70 mm tall, standing up
+/// assert!(model.signed_volume() > 0.0);
+/// # let _ = std::fs::remove_file(&path);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// As [`load_model`]; [`SourceError::BadModel`] for a unit that is not finite and positive.
+pub fn load_model_as(path: &Path, convention: &ModelConvention) -> Result<Model, SourceError> {
+    let (mut model, file_unit) = load_model_file(path)?;
+    let m = convention.metres_per_unit_for(file_unit);
+    if !(m.is_finite() && m > 0.0) {
+        return Err(SourceError::BadModel {
+            what: path.display().to_string(),
+            message: format!("unit of {m} m is not positive"),
+        });
+    }
+    for v in &mut model.vertices {
+        *v = (v.as_dvec3() * m).as_vec3();
+    }
+    if convention.up == ModelUp::Z {
+        model = model.z_up_to_y_up();
+    }
+    model.stand_on_platform();
     model.validate(&path.display().to_string())?;
     Ok(model)
 }
 
-/// Parses Wavefront OBJ text: `v x y z [w]` and `f` lines (polygons are fan-triangulated;
-/// `a`, `a/b`, `a//c`, `a/b/c` forms; negative indices count back from the last vertex read);
-/// every other statement is ignored. `path` only names the file in errors.
+/// Parses Wavefront OBJ text (see `voxoct_stl::obj::parse_obj`): `v x y z [w]` and `f`
+/// lines (polygons are fan-triangulated; `a`, `a/b`, `a//c`, `a/b/c` forms; negative
+/// indices count back from the last vertex read); every other statement is ignored. `path`
+/// only names the file in errors.
 ///
 /// # Errors
 /// [`SourceError::Obj`] naming the line: a bad number, a face with fewer than three
 /// vertices, an index of 0 or out of range.
 pub fn parse_obj(text: &str, path: &Path) -> Result<Model, SourceError> {
-    let err = |line: usize, message: String| SourceError::Obj {
-        path: path.to_owned(),
-        line,
-        message,
-    };
-    let mut vertices: Vec<Vec3> = Vec::new();
-    // Faces keep their line so that a forward reference can be checked at the end.
-    let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let content = raw.split('#').next().unwrap_or("");
-        let mut words = content.split_whitespace();
-        match words.next() {
-            Some("v") => {
-                let mut c = [0.0f32; 3];
-                for (k, slot) in c.iter_mut().enumerate() {
-                    let w = words.next().ok_or_else(|| {
-                        err(line, format!("vertex has {k} coordinates, 3 expected"))
-                    })?;
-                    *slot = w
-                        .parse::<f32>()
-                        .ok()
-                        .filter(|x| x.is_finite())
-                        .ok_or_else(|| err(line, format!("bad vertex coordinate {w:?}")))?;
-                }
-                vertices.push(Vec3::from_array(c));
-            }
-            Some("f") => {
-                let mut idx = Vec::new();
-                for w in words {
-                    let first = w.split('/').next().unwrap_or("");
-                    let k: i64 = first
-                        .parse()
-                        .map_err(|_| err(line, format!("bad face index {w:?}")))?;
-                    let k = match k {
-                        0 => return Err(err(line, "face index 0 (OBJ counts from 1)".into())),
-                        k if k < 0 => {
-                            let r = vertices.len() as i64 + k;
-                            if r < 0 {
-                                return Err(err(
-                                    line,
-                                    format!(
-                                        "relative face index {k} points before the first vertex \
-                                         ({} read so far)",
-                                        vertices.len()
-                                    ),
-                                ));
-                            }
-                            r
-                        }
-                        k => k - 1,
-                    };
-                    idx.push(k);
-                }
-                if idx.len() < 3 {
-                    return Err(err(
-                        line,
-                        format!("face has {} vertices, at least 3 expected", idx.len()),
-                    ));
-                }
-                faces.push((line, idx));
-            }
-            _ => {}
-        }
-    }
-    let n = vertices.len() as i64;
-    let mut indices = Vec::new();
-    for (line, f) in faces {
-        if let Some(&bad) = f.iter().find(|&&k| k >= n) {
-            return Err(err(
+    voxoct_stl::obj::parse_obj(text)
+        .map(|(vertices, indices)| Model { vertices, indices })
+        .map_err(|e| match e {
+            voxoct_stl::StlError::Obj { line, message } => SourceError::Obj {
+                path: path.to_owned(),
                 line,
-                format!("face index {} but the file has {n} vertices", bad + 1),
-            ));
-        }
-        for k in 1..f.len() - 1 {
-            indices.push([f[0] as u32, f[k] as u32, f[k + 1] as u32]);
-        }
-    }
-    Ok(Model { vertices, indices })
+                message,
+            },
+            other => SourceError::Obj {
+                path: path.to_owned(),
+                line: 0,
+                message: other.to_string(),
+            },
+        })
 }
 
 /// A closed surface of revolution about +Y. `profile` is a polyline of `(radius, y)` from a

@@ -98,10 +98,14 @@ fn model_file_errors_name_the_file() {
 
     let ply = dir.path().join("model.ply");
     std::fs::write(&ply, "ply\n").unwrap();
-    assert!(matches!(
-        load_model(&ply),
-        Err(SourceError::UnknownModelFormat { .. })
-    ));
+    let e = load_model(&ply).unwrap_err();
+    assert!(matches!(e, SourceError::Stl { .. }), "{e:?}");
+    assert!(e.to_string().contains("model.ply"), "{e}");
+    let xyz = dir.path().join("model.xyz");
+    std::fs::write(&xyz, "0 0 0\n").unwrap();
+    let e = load_model(&xyz).unwrap_err();
+    assert!(matches!(e, SourceError::UnknownModelFormat { .. }), "{e:?}");
+    assert!(e.to_string().contains(".3mf"), "{e}");
     assert!(matches!(
         load_model(&dir.path().join("missing.obj")),
         Err(SourceError::Io { .. })
@@ -172,4 +176,91 @@ fn builtin_names_all_resolve() {
     for name in Model::BUILTIN_NAMES {
         assert!(Model::builtin(name).is_some(), "{name}");
     }
+}
+
+/// A Z-up tower in millimetres (40 × 30 mm base, 70 mm tall), outward wound: a box.
+fn tower_mm() -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let (w, d, h) = (40.0, 30.0, 70.0);
+    let v: Vec<Vec3> = (0..8)
+        .map(|i| {
+            Vec3::new(
+                if i & 1 == 0 { 0.0 } else { w },
+                if i & 2 == 0 { 0.0 } else { d },
+                if i & 4 == 0 { 0.0 } else { h },
+            ) + Vec3::new(100.0, 100.0, 5.0)
+        })
+        .collect();
+    let t = vec![
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    (v, t)
+}
+
+#[test]
+fn model_files_keep_their_size_and_orientation() {
+    use voxoct_kinect::{ModelConvention, ModelUp, load_model_as};
+    use voxoct_stl::{MeshFormat, MeshRef, WriteOptions, write_mesh_file};
+    let dir = tempfile::tempdir().unwrap();
+    let (v, t) = tower_mm();
+    for format in MeshFormat::ALL {
+        let path = dir.path().join(format!("tower.{}", format.extension()));
+        // Numbers as in the file: millimetres (scale 1; 3MF then says "millimeter" when
+        // written with scale 1000 from metres, so write metres for it).
+        let (verts, scale): (Vec<Vec3>, f32) = if format == MeshFormat::ThreeMf {
+            (v.iter().map(|&p| p * 0.001).collect(), 1000.0)
+        } else {
+            (v.clone(), 1.0)
+        };
+        let opts = WriteOptions {
+            scale,
+            ..WriteOptions::default()
+        };
+        write_mesh_file(&path, format, MeshRef::new(&verts, &t), &opts).unwrap();
+        let m = load_model_as(&path, &ModelConvention::default()).unwrap();
+        let b = m.bounds().unwrap();
+        let size = b.max - b.min;
+        assert!(
+            (size - Vec3::new(0.04, 0.07, 0.03)).abs().max_element() < 1e-6,
+            "{format}: {size}"
+        );
+        assert_eq!(b.min.y, 0.0, "{format}");
+        assert!((b.min.x + b.max.x).abs() < 1e-6 && (b.min.z + b.max.z).abs() < 1e-6);
+        assert!(m.signed_volume() > 0.0, "{format}: still outward");
+
+        // Y up and inches: the file's y becomes the height, each unit 25.4 mm.
+        let conv = ModelConvention {
+            metres_per_unit: Some(0.0254),
+            up: ModelUp::Y,
+        };
+        let m = load_model_as(&path, &conv).unwrap();
+        let size = {
+            let b = m.bounds().unwrap();
+            b.max - b.min
+        };
+        // (An explicit unit overrides the one a 3MF states; its numbers are millimetres.)
+        let want = Vec3::new(40.0, 30.0, 70.0) * 0.0254;
+        assert!((size - want).abs().max_element() < 1e-5, "{format}: {size}");
+    }
+    // A 3MF in metres keeps its size by its own unit.
+    let path = dir.path().join("tower_m.3mf");
+    let verts: Vec<Vec3> = v.iter().map(|&p| p * 0.001).collect();
+    let opts = WriteOptions {
+        scale: 1.0,
+        ..WriteOptions::default()
+    };
+    write_mesh_file(&path, MeshFormat::ThreeMf, MeshRef::new(&verts, &t), &opts).unwrap();
+    let m = load_model_as(&path, &ModelConvention::default()).unwrap();
+    let b = m.bounds().unwrap();
+    assert!(((b.max.y - b.min.y) - 0.07).abs() < 1e-6);
 }

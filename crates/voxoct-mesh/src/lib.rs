@@ -72,6 +72,7 @@ pub use voxoct_core::{Cell, GridSpec, Octree};
 
 mod bitbox;
 pub mod closure;
+mod export;
 mod field;
 mod march;
 mod mesh;
@@ -80,6 +81,7 @@ mod par;
 mod smooth;
 mod tables;
 
+pub use export::{platform_to_print, print_frame_vertices, to_print_frame, vertex_hits};
 pub use field::FILL_LIMIT;
 pub use mesh::{Mesh, MeshStats, TopologyError};
 pub use options::{Floor, MeshError, MeshOptions, Placement, Taubin};

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-/// Everything that can go wrong reading or writing an STL file.
+/// Everything that can go wrong reading or writing a mesh file (STL, 3MF, PLY, OBJ).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum StlError {
@@ -127,7 +127,7 @@ pub enum StlError {
     ///
     /// How to fix: simplify the model (fewer triangles) before scanning it.
     #[error("{len} bytes is more than the {max} bytes an STL may have here; simplify the model")]
-    TooLarge {
+    FileTooLarge {
         /// Length of the input in bytes (at least this many).
         len: u64,
         /// The limit.
@@ -139,6 +139,85 @@ pub enum StlError {
     TooManyTriangles {
         /// Number of triangles given.
         count: usize,
+    },
+
+    /// A file name or `--format` value that names no supported mesh format.
+    ///
+    /// How to fix: use one of the listed extensions (or `--format`).
+    #[error(
+        "unknown mesh format {name:?}: supported formats are {}",
+        crate::MeshFormat::SUPPORTED
+    )]
+    UnknownFormat {
+        /// The extension or name given (`""` when the file name has no extension).
+        name: String,
+    },
+
+    /// A scale for which the 3MF format has no unit.
+    ///
+    /// How to fix: write 3MF with `scale` 1000 (millimetres) or 1 (metres).
+    #[error(
+        "3MF has no unit for scale {scale} (file units per metre): use 1e6 (micron), 1000 \
+         (millimeter), 100 (centimeter), 39.37 (inch), 3.28 (foot) or 1 (meter)"
+    )]
+    No3mfUnit {
+        /// The scale given.
+        scale: f32,
+    },
+
+    /// The ZIP container of a 3MF file could not be written or read.
+    #[error("3MF container: {0}")]
+    Zip(#[from] zip::result::ZipError),
+
+    /// A 3MF file whose package or model does not follow the 3MF core specification.
+    ///
+    /// How to fix: the named part is malformed; re-export the file from its application.
+    #[error("3MF {part}: {message}")]
+    ThreeMf {
+        /// The package part (e.g. `3D/3dmodel.model`).
+        part: String,
+        /// What is wrong with it.
+        message: String,
+    },
+
+    /// A PLY file that does not follow the PLY format (header or body).
+    ///
+    /// How to fix: the file is cut off or not PLY; export it again.
+    #[error("PLY: {message}")]
+    Ply {
+        /// What is wrong, with the element/line/byte offset where known.
+        message: String,
+    },
+
+    /// A Wavefront OBJ file with a malformed statement.
+    #[error("OBJ line {line}: {message}")]
+    Obj {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with it.
+        message: String,
+    },
+
+    /// A file that declares or holds more than a reader accepts (a hostile or corrupt file).
+    #[error("{what}: {count} is more than the limit {limit}")]
+    TooLarge {
+        /// What was counted (e.g. "3MF vertices").
+        what: &'static str,
+        /// The count found or declared.
+        count: u64,
+        /// The limit.
+        limit: u64,
+    },
+
+    /// Per-vertex values whose length is not the vertex count.
+    #[error("{what} has {len} values for {vertex_count} vertices")]
+    VertexDataLength {
+        /// Which values (e.g. "hits").
+        what: &'static str,
+        /// Their number.
+        len: usize,
+        /// The number of vertices.
+        vertex_count: usize,
     },
 }
 

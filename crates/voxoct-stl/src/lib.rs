@@ -1,4 +1,18 @@
-//! voxoct-stl: binary and ASCII STL, read and write, for voxoct meshes.
+//! voxoct-stl: mesh files for voxoct meshes — STL (binary and ASCII), 3MF, PLY and OBJ,
+//! written and read.
+//!
+//! - [`MeshFormat`] names a format and is chosen from a file extension
+//!   ([`MeshFormat::from_path`]) or a name; [`write_mesh`] / [`write_mesh_file`] write any
+//!   of them, [`read_mesh`] / [`read_mesh_file`] read any of them back (bounded against
+//!   hostile sizes, see [`MAX_ELEMENTS`]).
+//! - 3MF ([`threemf`]): a ZIP package with `[Content_Types].xml`, `_rels/.rels` and
+//!   `3D/3dmodel.model`, one object of type `model`, one build item, and the unit
+//!   (`millimeter` for the default scale 1000).
+//! - PLY ([`ply`]): binary little-endian, vertex normals `nx ny nz`, and a per-vertex `hits`
+//!   property when [`MeshRef::hits`] is given.
+//! - OBJ ([`obj`]): `v`, `vn`, `f a//a b//b c//c` (1-based).
+//!
+//! The rest of this page is about STL.
 //!
 //! The library works in metres; printers and slicers assume millimetres. The writers take a
 //! `scale` applied at the file boundary (`1000.0` for metres → millimetres); the readers
@@ -37,10 +51,18 @@
 pub use voxoct_core::glam;
 
 mod error;
+mod format;
+pub mod obj;
+pub mod ply;
 mod read;
+pub mod threemf;
 mod write;
 
 pub use error::StlError;
+pub use format::{
+    MAX_ELEMENTS, MeshFormat, MeshRef, ReadMesh, WriteOptions, read_mesh, read_mesh_file,
+    vertex_normals, write_mesh, write_mesh_file,
+};
 pub use read::{MAX_FILE_BYTES, parse, read, read_file, scale_triangles, weld};
 pub use write::{
     BINARY_HEADER_BYTES, BINARY_TRIANGLE_BYTES, StlFormat, write, write_ascii, write_binary,

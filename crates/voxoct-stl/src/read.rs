@@ -33,7 +33,7 @@ pub fn read<R: Read>(r: R) -> Result<Vec<Triangle>, StlError> {
     let mut bytes = Vec::new();
     r.take(MAX_FILE_BYTES + 1).read_to_end(&mut bytes)?;
     if bytes.len() as u64 > MAX_FILE_BYTES {
-        return Err(StlError::TooLarge {
+        return Err(StlError::FileTooLarge {
             len: bytes.len() as u64,
             max: MAX_FILE_BYTES,
         });
@@ -45,7 +45,7 @@ pub fn read<R: Read>(r: R) -> Result<Vec<Triangle>, StlError> {
 /// file (symlinks followed) of at most [`MAX_FILE_BYTES`] is read.
 ///
 /// # Errors
-/// As [`read`], and [`StlError::NotAFile`] or [`StlError::TooLarge`], wrapped in
+/// As [`read`], and [`StlError::NotAFile`] or [`StlError::FileTooLarge`], wrapped in
 /// [`StlError::File`].
 pub fn read_file(path: impl AsRef<Path>) -> Result<Vec<Triangle>, StlError> {
     let path = path.as_ref();
@@ -60,7 +60,7 @@ pub fn read_file(path: impl AsRef<Path>) -> Result<Vec<Triangle>, StlError> {
             return Err(StlError::NotAFile { kind });
         }
         if meta.len() > MAX_FILE_BYTES {
-            return Err(StlError::TooLarge {
+            return Err(StlError::FileTooLarge {
                 len: meta.len(),
                 max: MAX_FILE_BYTES,
             });

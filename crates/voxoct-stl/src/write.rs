@@ -29,7 +29,11 @@ const HEADER: &[u8] = b"voxoct binary STL";
 /// Triangles encoded per `write_all` call.
 const CHUNK: usize = 1024;
 
-fn check_input(vertices: &[Vec3], triangles: &[[u32; 3]], scale: f32) -> Result<(), StlError> {
+pub(crate) fn check_input(
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    scale: f32,
+) -> Result<(), StlError> {
     if !(scale.is_finite() && scale > 0.0) {
         return Err(StlError::InvalidScale { scale });
     }
@@ -176,12 +180,22 @@ pub fn write_file(
     format: StlFormat,
     scale: f32,
 ) -> Result<(), StlError> {
-    let path = path.as_ref();
+    write_atomic(path.as_ref(), |w| {
+        write(w, vertices, triangles, format, scale)
+    })
+}
+
+/// Runs `body` on a buffered temporary file next to `path`, syncs it and renames it over
+/// `path`; on any error removes the temporary file and wraps the error with `path`.
+pub(crate) fn write_atomic(
+    path: &Path,
+    body: impl FnOnce(&mut BufWriter<File>) -> Result<(), StlError>,
+) -> Result<(), StlError> {
     let tmp = temp_path(path);
     let result = (|| -> Result<(), StlError> {
         let file = File::create(&tmp)?;
         let mut w = BufWriter::with_capacity(1 << 20, file);
-        write(&mut w, vertices, triangles, format, scale)?;
+        body(&mut w)?;
         let file = w.into_inner().map_err(|e| e.into_error())?;
         file.sync_all()?;
         drop(file);

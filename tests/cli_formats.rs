@@ -1,0 +1,197 @@
+//! The `scan` example's output formats and frames, and `--model` files as slicers write
+//! them: what a user gets from `--out x.3mf`, `--up`, `--format`, `--model-units`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use voxoct::mesh::Mesh;
+use voxoct::stl::glam::Vec3;
+
+/// The `scan` example binary built next to this test (`cargo test --workspace` builds it),
+/// or `None` with a note.
+fn scan_bin() -> Option<PathBuf> {
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().and_then(Path::parent).unwrap();
+    let bin = dir
+        .join("examples")
+        .join(format!("scan{}", std::env::consts::EXE_SUFFIX));
+    if !bin.exists() {
+        eprintln!(
+            "SKIPPED: {} is not built; run `cargo test --workspace`",
+            bin.display()
+        );
+        return None;
+    }
+    Some(bin)
+}
+
+fn scan(args: &[&str], cwd: &Path) -> Option<Output> {
+    let out = Command::new(scan_bin()?)
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap();
+    Some(out)
+}
+
+const SMALL: [&str; 6] = ["--snapshots", "4", "--frames", "1", "--leaf", "0.003"];
+
+fn read(path: &Path) -> Mesh {
+    let m = voxoct::stl::read_mesh_file(path).unwrap();
+    Mesh {
+        vertices: m.vertices,
+        triangles: m.triangles,
+    }
+}
+
+#[test]
+fn every_output_format_is_written_z_up_on_the_bed() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["s.stl", "s.3mf", "s.ply", "s.obj"] {
+        let args = [&SMALL[..], &["--builtin", "sphere", "--out", name, "-q"]].concat();
+        let Some(out) = scan(&args, dir.path()) else {
+            return;
+        };
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let mesh = read(&dir.path().join(name));
+        mesh.check_closed_manifold()
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let b = mesh.stats().bounds.unwrap();
+        assert_eq!(b.min.z, 0.0, "{name}: base on the bed");
+        assert!((b.min.x + b.max.x).abs() < 1e-3 && (b.min.y + b.max.y).abs() < 1e-3);
+        // The 12 cm sphere, in millimetres, its height along z.
+        let size = b.max - b.min;
+        assert!((size.z - 120.0).abs() < 6.0, "{name}: {size}");
+    }
+    let ply = std::fs::read(dir.path().join("s.ply")).unwrap();
+    let head = String::from_utf8_lossy(&ply[..400]);
+    assert!(head.contains("property float nx") && head.contains("property uint hits"));
+
+    // --up y keeps the platform frame: the height along y, the base where the scan put it.
+    let args = [
+        &SMALL[..],
+        &["--builtin", "sphere", "--up", "y", "--out", "y.stl", "-q"],
+    ]
+    .concat();
+    let out = scan(&args, dir.path()).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let b = read(&dir.path().join("y.stl")).stats().bounds.unwrap();
+    assert!(
+        (b.max.y - b.min.y - 120.0).abs() < 6.0 && b.min.y > 0.0,
+        "{b:?}"
+    );
+
+    // --format wins over the extension.
+    let args = [
+        &SMALL[..],
+        &[
+            "--builtin",
+            "sphere",
+            "--format",
+            "ply",
+            "--out",
+            "f.dat",
+            "-q",
+        ],
+    ]
+    .concat();
+    let out = scan(&args, dir.path()).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        std::fs::read(dir.path().join("f.dat"))
+            .unwrap()
+            .starts_with(b"ply\n")
+    );
+}
+
+/// A clean failure naming `needle`, and nothing written.
+fn assert_fails(args: &[&str], needle: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(out) = scan(&[args, &["-q"]].concat(), dir.path()) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} should fail");
+    assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    assert!(
+        stderr.contains(needle),
+        "{args:?}: want {needle:?} in {stderr}"
+    );
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "{args:?} left {left:?}");
+}
+
+#[test]
+fn unknown_output_names_fail_cleanly() {
+    assert_fails(&["--out", "x.jpg"], ".stl, .3mf, .ply, .obj");
+    assert_fails(&["--out", "noext"], ".3mf");
+    assert_fails(&["--format", "xyz"], "xyz");
+    assert_fails(&["--preview", "p.jpg"], ".png");
+    assert_fails(&["--out", "x.3mf", "--ascii"], "--ascii");
+}
+
+#[test]
+fn a_z_up_millimetre_model_keeps_its_size_and_orientation() {
+    let dir = tempfile::tempdir().unwrap();
+    // A tower 40 mm wide (x), 30 mm deep (y), 70 mm tall (z), as a slicer would write it.
+    let v: Vec<Vec3> = (0..8)
+        .map(|i| {
+            Vec3::new(
+                if i & 1 == 0 { 0.0 } else { 40.0 },
+                if i & 2 == 0 { 0.0 } else { 30.0 },
+                if i & 4 == 0 { 0.0 } else { 70.0 },
+            )
+        })
+        .collect();
+    let t = [
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    let model = dir.path().join("tower.stl");
+    voxoct::stl::write_file(&model, &v, &t, voxoct::stl::StlFormat::Binary, 1.0).unwrap();
+    let m = model.to_str().unwrap();
+    let args = [&SMALL[..], &["--model", m, "--out", "t.stl"]].concat();
+    let Some(out) = scan(&args, dir.path()) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("40.0 × 30.0 × 70.0 mm"), "{stderr}");
+    let size = {
+        let b = read(&dir.path().join("t.stl")).stats().bounds.unwrap();
+        b.max - b.min
+    };
+    // Scanned at 3 mm leaves from 4 sides (a box's corners bulge between the views):
+    // standing up, 70 mm tall, its footprint still 40 × 30 mm give or take the bulges.
+    assert!((size.z - 70.0).abs() < 4.0, "{size}");
+    assert!(
+        (size.x - 40.0).abs() < 10.0 && (size.y - 30.0).abs() < 10.0,
+        "{size}"
+    );
+    assert!(size.x > size.y, "{size}");
+
+    // Read as metres it would not fit: a clear error that names the flags.
+    assert_fails(&["--model", m, "--model-units", "m"], "--model-units");
+}
