@@ -16,7 +16,7 @@ use voxoct_depth::{
     SensorConfig, Snapshot, kinect_v1_sigma, triangulate,
 };
 use voxoct_kinect::{DepthSource, SimulatedKinect, SourceError};
-use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions};
+use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplify};
 
 use crate::carve::{CarveView, with_hidden_cells};
 
@@ -54,6 +54,11 @@ pub struct Params {
     /// With a solid mesh: fill what no frame could see ([`crate::carve`]), so the solid
     /// closes over the unseen underside instead of leaking into a hollow shell there.
     pub carve: bool,
+    /// Simplify the mesh after dropping small pieces ([`voxoct_mesh::simplify`]: quadric edge
+    /// collapse that keeps it closed, manifold and free of new self-intersections); `None`
+    /// keeps every triangle. The default is [`Simplify::for_leaf`] of the default `leaf_m`:
+    /// set it again when changing `leaf_m`.
+    pub simplify: Option<Simplify>,
 }
 
 impl Default for Params {
@@ -69,6 +74,7 @@ impl Default for Params {
             mesh: MeshOptions::smooth(),
             carve: true,
             min_piece_fraction: 0.01,
+            simplify: Some(Simplify::for_leaf(0.001)),
         }
     }
 }
@@ -281,6 +287,9 @@ pub fn reconstruct(
     let mut mesh = voxoct_mesh::mesh_cells(&cells, &grid, &options)?;
     drop(cells);
     mesh.remove_pieces_below_fraction(params.min_piece_fraction);
+    if let Some(opts) = &params.simplify {
+        voxoct_mesh::simplify(&mut mesh, opts);
+    }
     timings.mesh = t.elapsed();
 
     Ok(Reconstruction {

@@ -175,6 +175,20 @@ struct Args {
     /// Taubin smoothing iterations (0 = none).
     #[arg(long, value_name = "N", help_heading = "Meshing")]
     smooth: Option<u32>,
+    /// Largest simplification error, metres (default: a quarter of --leaf).
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "M",
+        help_heading = "Meshing"
+    )]
+    max_error: Option<f32>,
+    /// Simplify down to at most N triangles (within --max-error).
+    #[arg(long, value_name = "N", help_heading = "Meshing")]
+    triangles: Option<usize>,
+    /// Keep every triangle of the marched mesh (no simplification).
+    #[arg(long, help_heading = "Meshing")]
+    no_simplify: bool,
     /// Leaves hit by fewer triangles count as empty (rejects single errant readings).
     #[arg(long, value_name = "N", help_heading = "Meshing")]
     min_hits: Option<u32>,
@@ -323,6 +337,12 @@ fn run(args: &Args) -> Result<(), String> {
         mesh: mesh_options(args),
         carve: !args.no_carve,
         min_piece_fraction: args.min_piece,
+        simplify: (!args.no_simplify).then(|| voxoct::mesh::Simplify {
+            max_error: args
+                .max_error
+                .unwrap_or(voxoct::mesh::Simplify::LEAF_FRACTION * args.leaf),
+            target_triangles: args.triangles,
+        }),
     };
     let mut bar: Option<ProgressBar> = None;
     let result = reconstruct(&settings.config, snapshots, &params, |stage| {
@@ -465,6 +485,13 @@ fn check_args(args: &Args) -> Result<(), String> {
         return Err(format!(
             "--threshold must be a positive squared edge length in m², got {}",
             args.threshold
+        ));
+    }
+    if let Some(e) = args.max_error
+        && !(e.is_finite() && e >= 0.0)
+    {
+        return Err(format!(
+            "--max-error must be a non-negative number of metres, got {e}"
         ));
     }
     if !(0.0..=1.0).contains(&args.min_piece) {

@@ -76,12 +76,18 @@ mod march;
 mod mesh;
 mod options;
 mod par;
+mod selfx;
+mod simplify;
 mod smooth;
 mod tables;
 
 pub use field::FILL_LIMIT;
 pub use mesh::{Mesh, MeshStats, TopologyError};
 pub use options::{Floor, MeshError, MeshOptions, Placement, Taubin};
+pub use simplify::{
+    MAX_NORMAL_TURN_DEG, MAX_RETRIES, MIN_QUALITY, MIN_QUALITY_ABSOLUTE, Simplify, SimplifyStats,
+    simplify,
+};
 
 /// Meshes marked cells of one grid (e.g. an octree's leaves and its leaf grid).
 ///
