@@ -15,7 +15,7 @@ use crate::par;
 const MAX_CELLS_PER_AXIS: f32 = ((1u32 << 21) - 2) as f32;
 
 /// Grid cell edge relative to the mean largest extent of a triangle's box.
-const CELL_PER_EXTENT: f32 = 0.7;
+const CELL_PER_EXTENT: f32 = 1.0;
 
 /// Every pair `(a, b)`, `a < b`, of triangles of `mesh` that intersect, sorted.
 pub(crate) fn intersecting_pairs(mesh: &Mesh) -> Vec<(u32, u32)> {
@@ -112,9 +112,9 @@ pub(crate) fn triangles_intersect(mesh: &Mesh, a: u32, b: u32) -> bool {
     let p = |k: u32| mesh.vertices[k as usize].as_dvec3();
     let mut shared = [(0usize, 0usize); 3];
     let mut n = 0;
-    for i in 0..3 {
-        for j in 0..3 {
-            if ta[i] == tb[j] {
+    for (i, a) in ta.iter().enumerate() {
+        for (j, b) in tb.iter().enumerate() {
+            if a == b {
                 shared[n.min(2)] = (i, j);
                 n += 1;
             }

@@ -11,28 +11,40 @@
 //! directions the quadric leaves free (flat or cylindrical patches), so vertices never
 //! slide along the surface.
 //!
+//! Because the bound is a mean over the merged patch, a vertex may sit further than
+//! `max_error` from the original surface where the patch is curved; the tests find every
+//! vertex within twice the bound (and on a 30 mm sphere at 1 mm leaves, `for_leaf` keeps the
+//! mean vertex 0.24 leaf, the worst 0.37 leaf from the sphere).
+//!
 //! # Guarantees (for a closed, oriented 2-manifold input, as [`crate::mesh_cells`] gives)
 //! - **Link condition**: an edge `u w` collapses only if `u` and `w` have exactly two common
-//!   neighbours (the apexes of its two triangles) and the two do not form a tetrahedron, so
-//!   the result stays a closed 2-manifold ([`Mesh::check_closed_manifold`] passes).
-//! - **No flips, no needles**: every triangle that survives a collapse keeps its normal
-//!   within [`MAX_NORMAL_TURN_DEG`] of its direction before that collapse, and its shape
-//!   quality (`4√3·area / Σ edge²`, 1 for an equilateral) does not fall below
-//!   [`MIN_QUALITY`] unless it was already that low, and never below
-//!   [`MIN_QUALITY_ABSOLUTE`].
-//! - **No self-intersections introduced**: after the collapses, an exact test over all
-//!   triangle pairs that are near each other (a uniform grid) looks for intersecting pairs
-//!   with at least one changed triangle. If there are any, the original vertices merged into
-//!   those triangles are frozen and the simplification is run again from the input; after
-//!   [`MAX_RETRIES`] rounds the input is left unchanged. The common case costs one global
-//!   test, much less than testing every collapse against its neighbourhood.
+//!   neighbours (the apexes of its two triangles) and are not both of valence 3 (a
+//!   tetrahedron), so the result stays a closed 2-manifold with the same pieces and genus.
+//!   [`Mesh::check_closed_manifold`] is run on the result as a safety net: a failure (never
+//!   seen) leaves the input unchanged.
+//! - **No flips, no needles**: every triangle changed by a collapse keeps its normal within
+//!   [`MAX_NORMAL_TURN_DEG`] of its direction before; within 60° of the mean normal of the
+//!   fan it replaces; within 60° of the summed original normals of the clusters at its
+//!   corners (so turns cannot add up over many collapses); and its shape quality
+//!   (`4√3·area / Σ edge²`, 1 for an equilateral) does not fall below [`MIN_QUALITY`] unless
+//!   it was already that low, and never below [`MIN_QUALITY_ABSOLUTE`].
+//! - **No self-intersections introduced**: each collapse tests the new fan exactly against
+//!   the other triangles around its outer vertices (the local folds). Then one exact test
+//!   over all pairs of nearby triangles (a uniform grid; `f64` orientation tests) looks for
+//!   intersecting pairs with a changed triangle, which only distant sheets (thin walls) or
+//!   a crumpled input can give. If there are any, the original vertices merged into those
+//!   triangles and their neighbours are frozen and the simplification is run again from the
+//!   input; after [`MAX_RETRIES`] rounds the input is left unchanged. Intersections the
+//!   input already had are left as they are (their triangles do not count as changed).
 //!
 //! # Speed
-//! Collapses are made in passes (as meshoptimizer does): each pass evaluates every edge's
-//! collapse cost (in parallel with the `parallel` feature), orders the edges by cost with a
-//! counting sort on the float's exponent and leading mantissa bits, and collapses greedily
-//! in that order, at most one collapse per vertex per pass; vertex→triangle adjacency is a
-//! flat CSR rebuilt per pass. No hash map, no heap.
+//! Collapses are made in passes (as meshoptimizer does): each pass evaluates the collapse
+//! cost of every edge whose neighbourhood changed (in parallel with the `parallel`
+//! feature), orders the edges by cost with a counting sort on the float's exponent bits
+//! (coarse classes keep memory access local), and collapses greedily in that order, at most
+//! one collapse per vertex per pass; vertex→triangle adjacency is a flat CSR rebuilt per
+//! pass. No hash map, no heap. One core of a shared 2-core machine simplifies the 586 k
+//! triangles of the bunny at 1 mm in about 0.1–0.2 s per round (see the README figures).
 
 use voxoct_core::glam::{DVec3, Vec3};
 
@@ -111,7 +123,8 @@ pub struct SimplifyStats {
 ///
 /// A mesh that fails [`Mesh::check_closed_manifold`] is left unchanged (the error is in
 /// [`SimplifyStats::skipped`]); so is any mesh when `max_error` is negative or not finite.
-/// Vertices keep their relative order; unused ones are removed.
+/// Otherwise the vertices are renumbered in the order the triangles first use them (also
+/// when no collapse could be made); triangles keep their relative order.
 pub fn simplify(mesh: &mut Mesh, opts: &Simplify) -> SimplifyStats {
     let mut stats = SimplifyStats {
         triangles_before: mesh.triangles.len(),
@@ -133,7 +146,7 @@ pub fn simplify(mesh: &mut Mesh, opts: &Simplify) -> SimplifyStats {
     }
     let nv = mesh.vertices.len();
     let mut frozen = vec![false; nv];
-    let original = mesh.clone();
+    let original = renumbered_by_first_use(mesh);
     let quadrics = initial_quadrics(&original);
     loop {
         let mut work = Collapser::new(&original, &quadrics, &frozen, opts);
@@ -194,16 +207,41 @@ pub fn simplify(mesh: &mut Mesh, opts: &Simplify) -> SimplifyStats {
             }
         }
         let hit = near;
-        for v in 0..nv {
+        for (v, f) in frozen.iter_mut().enumerate() {
             let mut r = v;
             while parent[r] as usize != r {
                 r = parent[r] as usize;
             }
-            if hit[r] && !frozen[v] {
-                frozen[v] = true;
+            if hit[r] && !*f {
+                *f = true;
                 stats.frozen_vertices += 1;
             }
         }
+    }
+}
+
+/// `mesh` with its vertices numbered in the order the triangles first use them, so that
+/// walking the triangles in order touches vertex data in order (the marcher numbers
+/// vertices by grid edge, far from its triangle order: this halves the time).
+fn renumbered_by_first_use(mesh: &Mesh) -> Mesh {
+    let mut map = vec![u32::MAX; mesh.vertices.len()];
+    let mut vertices = Vec::with_capacity(mesh.vertices.len());
+    let mut triangles = Vec::with_capacity(mesh.triangles.len());
+    for t in &mesh.triangles {
+        let mut out = [0u32; 3];
+        for (o, &k) in out.iter_mut().zip(t) {
+            let m = &mut map[k as usize];
+            if *m == u32::MAX {
+                *m = vertices.len() as u32;
+                vertices.push(mesh.vertices[k as usize]);
+            }
+            *o = *m;
+        }
+        triangles.push(out);
+    }
+    Mesh {
+        vertices,
+        triangles,
     }
 }
 
@@ -285,7 +323,7 @@ impl Quadric {
         let c01 = a02 * a12 - a01 * a22;
         let c02 = a01 * a12 - a02 * a11;
         let det = a00 * c00 + a01 * c01 + a02 * c02;
-        if !(det.abs() > 1e-300) {
+        if !greater(det.abs(), 1e-300) {
             return None;
         }
         let c11 = a00 * a22 - a02 * a02;
@@ -306,8 +344,9 @@ const FAN_COS_MIN: f32 = 0.5;
 /// Ridge of [`Quadric::minimum`] relative to the quadric's trace.
 const RIDGE: f64 = 1e-3;
 
-/// Per-vertex quadrics of `mesh`, in coordinates relative to its first vertex.
-fn initial_quadrics(mesh: &Mesh) -> Vec<Quadric> {
+/// Per-vertex quadrics of `mesh` (in coordinates relative to its first vertex) and
+/// area-weighted normals.
+fn initial_quadrics(mesh: &Mesh) -> Vec<(Quadric, Vec3)> {
     let o = origin(mesh);
     let planes: Vec<Quadric> = {
         let mut v = Vec::new();
@@ -328,10 +367,13 @@ fn initial_quadrics(mesh: &Mesh) -> Vec<Quadric> {
     let mut out = Vec::new();
     par::map_into(&mut out, mesh.vertices.len(), |v| {
         let mut q = Quadric::default();
+        let mut n = Vec3::ZERO;
         for &t in csr.fan(v as u32) {
             q.add(&planes[t as usize]);
+            let [a, b, c] = mesh.triangles[t as usize].map(|k| mesh.vertices[k as usize]);
+            n += (b - a).cross(c - a);
         }
-        q
+        (q, n)
     });
     out
 }
@@ -397,7 +439,9 @@ struct Candidate {
     p: Vec3,
 }
 
-/// Bits of the sort key kept by the counting sort (exponent and 4 mantissa bits).
+/// Bits dropped from the sort key by the counting sort: classes of a factor 256 in error²
+/// (16 in error). Coarse classes are visited in memory order, which is faster by a third
+/// than finer ones (cache misses) and changes the result by well under 1 %.
 const KEY_SHIFT: u32 = 26;
 
 /// The state of one simplification round.
@@ -405,6 +449,8 @@ struct Collapser<'a> {
     pos: Vec<Vec3>,
     tris: Vec<[u32; 3]>,
     quad: Vec<Quadric>,
+    /// Area-weighted normal of the original triangles merged into each vertex.
+    nrm: Vec<Vec3>,
     /// `parent[v] == v` for a live vertex, else the vertex it collapsed into.
     parent: Vec<u32>,
     /// Whether the vertex survived a collapse (its position and fan changed).
@@ -427,12 +473,13 @@ struct Collapser<'a> {
 }
 
 impl<'a> Collapser<'a> {
-    fn new(mesh: &Mesh, quadrics: &[Quadric], frozen: &'a [bool], opts: &Simplify) -> Self {
+    fn new(mesh: &Mesh, quadrics: &[(Quadric, Vec3)], frozen: &'a [bool], opts: &Simplify) -> Self {
         let nv = mesh.vertices.len();
         Self {
             pos: mesh.vertices.clone(),
             tris: mesh.triangles.clone(),
-            quad: quadrics.to_vec(),
+            quad: quadrics.iter().map(|q| q.0).collect(),
+            nrm: quadrics.iter().map(|q| q.1).collect(),
             parent: (0..nv as u32).collect(),
             moved: vec![false; nv],
             frozen,
@@ -549,6 +596,8 @@ impl<'a> Collapser<'a> {
             self.pos[w] = c.p;
             let qu = self.quad[u];
             self.quad[w].add(&qu);
+            let nu = self.nrm[u];
+            self.nrm[w] += nu;
             self.locked[u] = true;
             self.locked[w] = true;
             self.next_active[w] = true;
@@ -585,11 +634,16 @@ impl<'a> Collapser<'a> {
             && {
                 // The new fan stays on the side the old one faced (no fold within the fan).
                 let len = old_sum.length();
-                normals
-                    .iter()
-                    .all(|n| n.0.dot(old_sum) > FAN_COS_MIN * len * n.0.length())
-            }
-            && self.no_local_folds(u, w, p, &normals);
+                let mut flat = true;
+                let ok = normals.iter().all(|n| {
+                    let (d, l) = (n.0.dot(old_sum), len * n.0.length());
+                    flat &= d > FLAT_COS * l;
+                    d > FAN_COS_MIN * l
+                });
+                // A nearly flat new fan cannot fold onto its neighbours unless they were
+                // already folded; the global test catches what this skips.
+                ok && (flat || self.no_local_folds(u, w, p, &normals))
+            };
         self.ring_u = ring_u;
         self.ring_w = ring_w;
         self.normals = normals;
@@ -631,9 +685,21 @@ impl<'a> Collapser<'a> {
             let n_old = (b - a).cross(c - a);
             let n_new = (b - p).cross(c - p);
             let (lo, ln) = (n_old.length(), n_new.length());
+            // Never against the original surface: the new triangle faces the way the
+            // original triangles merged into its corners face on the whole.
+            let reference = self.nrm[v as usize]
+                + self.nrm[other as usize]
+                + self.nrm[t[(k + 1) % 3] as usize]
+                + self.nrm[t[(k + 2) % 3] as usize];
+            if !greater(
+                n_new.dot(reference),
+                REFERENCE_COS_MIN * ln * reference.length(),
+            ) {
+                return false;
+            }
             *old_sum += n_old;
             normals.push((n_new, t[(k + 1) % 3], t[(k + 2) % 3]));
-            if !(n_old.dot(n_new) > cos_min * lo * ln) {
+            if !greater(n_old.dot(n_new), cos_min * lo * ln) {
                 return false;
             }
             let q_new = quality(ln, p, b, c);
@@ -691,8 +757,22 @@ impl Collapser<'_> {
     }
 }
 
+/// Cosine (≈ 20°) above which every new triangle of a fan counts as flat with the old fan,
+/// so the fold test against the neighbours is skipped.
+const FLAT_COS: f32 = 0.94;
+
+/// Smallest cosine between a new triangle's normal and the summed original normals of
+/// the clusters at its corners.
+const REFERENCE_COS_MIN: f32 = 0.5;
+
 /// Cosine beyond which two triangles sharing an edge count as folded flat onto each other.
 const FOLD_COS: f32 = 0.95;
+
+/// `a > b`, false when either is NaN (so a NaN never passes a check).
+#[inline]
+fn greater<T: PartialOrd>(a: T, b: T) -> bool {
+    a > b
+}
 
 /// `4√3·area / Σ edge²` with `cross_len = 2·area`.
 #[inline]
@@ -724,7 +804,7 @@ fn link_condition(u: u32, w: u32, ring_u: &[u32], ring_w: &[u32]) -> bool {
 /// Orders candidates by the leading bits of their key (a counting sort: stable, linear).
 fn counting_sort(cands: &[Candidate], out: &mut Vec<Candidate>) {
     const BUCKETS: usize = 1 << (32 - KEY_SHIFT - 1);
-    let mut count = vec![0u32; BUCKETS + 1];
+    let mut count = [0u32; BUCKETS + 1];
     for c in cands {
         count[(c.key >> KEY_SHIFT) as usize + 1] += 1;
     }

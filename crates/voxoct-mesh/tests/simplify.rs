@@ -7,7 +7,7 @@ mod common;
 
 use parry3d::math::Pose;
 use parry3d::query::{PointQuery, PointQueryWithLocation};
-use parry3d::shape::TriMesh;
+use parry3d::shape::{TriMesh, Triangle as PTriangle};
 use proptest::prelude::*;
 use voxoct_core::Octree;
 use voxoct_mesh::glam::{IVec3, UVec3, Vec3};
@@ -165,9 +165,8 @@ fn check_simplify(mesh: &Mesh, opts: &Simplify) -> Result<(usize, usize), TestCa
     }
     // No normal turned around: a triangle whose centroid lies on the original surface
     // faces the way the original triangle there faces (within 120°: at a sharp edge the
-    // nearest triangle may be the other face's).
-    // Only for errors well below the half-leaf gap of a double-walled shell, where the
-    // nearest original triangle is on the triangle's own sheet.
+    // nearest triangle may be the other face's), or, where two sheets meet in a thin wedge,
+    // some original triangle facing its way is nearly as close.
     let triangles = if opts.max_error <= 0.25 * LEAF {
         &out.triangles[..]
     } else {
@@ -177,13 +176,24 @@ fn check_simplify(mesh: &Mesh, opts: &Simplify) -> Result<(usize, usize), TestCa
         let [a, b, c] = t.map(|k| out.vertices[k as usize]);
         let centroid = (a + b + c) / 3.0;
         let (proj, (face, _)) = original.project_local_point_and_get_location(centroid, false);
-        if (proj.point - centroid).length() > 0.1 * LEAF {
+        let d0 = (proj.point - centroid).length();
+        if d0 > 0.1 * LEAF {
             continue;
         }
         let (n0, n1) = (normal(mesh, mesh.triangles[face as usize]), normal(&out, t));
+        if n0.dot(n1) > -0.5 * n0.length() * n1.length() {
+            continue;
+        }
+        let same_way_near = mesh.triangles.iter().any(|&o| {
+            let [p, q, r] = o.map(|k| mesh.vertices[k as usize]);
+            normal(mesh, o).dot(n1) > 0.0
+                && PTriangle::new(p, q, r).distance_to_point(&id, centroid, false)
+                    <= d0 + 0.25 * LEAF
+        });
         prop_assert!(
-            n0.dot(n1) > -0.5 * n0.length() * n1.length(),
-            "triangle {t:?} faces away from the original surface"
+            same_way_near,
+            "triangle {t:?} faces away from the original surface (cos {})",
+            n0.normalize().dot(n1.normalize())
         );
     }
     Ok((mesh.triangles.len(), out.triangles.len()))
@@ -275,8 +285,13 @@ fn sphere_drops_most_triangles_and_stays_on_the_sphere() {
     // the worst within twice it.
     assert!(mean(&out) < 0.25 * LEAF);
     assert!(worst < 0.5 * LEAF);
+    // The volume moves by less than the error bound times the area.
     let (v0, v1) = (mesh.volume(), out.volume());
-    assert!((v1 - v0).abs() < 0.01 * v0, "volume {v0} -> {v1}");
+    let bound = f64::from(Simplify::for_leaf(LEAF).max_error) * mesh.area();
+    assert!(
+        (v1 - v0).abs() < bound,
+        "volume {v0} -> {v1}, bound {bound}"
+    );
 }
 
 #[test]
