@@ -30,6 +30,8 @@
 //!   distance stored in each [`Cell`] says the surface is; with `solid` the wall sits on the
 //!   surface itself rather than half a cell outside the outermost marked cells.
 //! - [`Taubin`] smoothing: volume-preserving, positions only.
+//! - [`simplify`]: quadric-error edge collapse bounded by a geometric error, keeping the mesh
+//!   closed, manifold and free of new self-intersections (see [`Simplify`]).
 //!
 //! [`MeshOptions::smooth`] selects the most accurate combination. Area-weighted mean distance
 //! from the mesh to the true surface, in cells, with the cells and their signed distances made
