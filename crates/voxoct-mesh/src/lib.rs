@@ -78,7 +78,7 @@ mod march;
 mod mesh;
 mod options;
 mod par;
-mod selfx;
+mod collide;
 mod simplify;
 mod smooth;
 mod tables;

@@ -782,8 +782,8 @@ impl Collapser<'_> {
                     let kx = tt.iter().position(|&k| k == x).unwrap_or(0);
                     let (o1, o2) = (tri_old[(kx + 1) % 3], tri_old[(kx + 2) % 3]);
                     let (n1, n2) = if b == x { (pd, at(c)) } else { (pd, at(b)) };
-                    if crate::selfx::segment_triangle(o1, o2, tri_new)
-                        || crate::selfx::segment_triangle(n1, n2, tri_old)
+                    if crate::collide::segment_triangle(o1, o2, tri_new)
+                        || crate::collide::segment_triangle(n1, n2, tri_old)
                     {
                         return false;
                     }
@@ -873,7 +873,7 @@ fn new_intersections(mesh: &Mesh, moved: &[bool]) -> Vec<u32> {
             .iter()
             .any(|&k| moved[k as usize])
     };
-    let pairs = crate::selfx::intersecting_pairs(mesh);
+    let pairs = crate::collide::intersecting_pairs(mesh);
     let mut out: Vec<u32> = pairs
         .into_iter()
         .filter(|&(a, b)| changed(a) || changed(b))
