@@ -17,7 +17,7 @@ use voxoct_depth::{
     triangulate,
 };
 use voxoct_kinect::{DepthSource, SimulatedKinect, SourceError};
-use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions};
+use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplify};
 
 use voxoct_depth::carve::{CarveView, Seen, visibility};
 use voxoct_mesh::closure::{close_cells, closure_box};
@@ -59,6 +59,12 @@ pub struct Params {
     /// Measure how much the snapshots disagree under the rig
     /// ([`Reconstruction::disagreement_m`]): a wrong tilt or axis shows as doubled contours.
     pub check_agreement: bool,
+    /// Simplify the mesh after dropping small pieces ([`voxoct_mesh::simplify`]: quadric edge
+    /// collapse that keeps it closed, manifold and free of new self-intersections); `None`
+    /// keeps every triangle. Off by default: it keeps the accuracy
+    /// but costs about 1 µs per triangle (three times the rest of the pipeline); use
+    /// [`Simplify::for_leaf`] of `leaf_m`.
+    pub simplify: Option<Simplify>,
 }
 
 impl Default for Params {
@@ -75,6 +81,7 @@ impl Default for Params {
             carve: true,
             check_agreement: true,
             min_piece_fraction: 0.01,
+            simplify: None,
         }
     }
 }
@@ -348,6 +355,9 @@ pub fn reconstruct(
     let mut mesh = voxoct_mesh::mesh_cells(&cells, &grid, &options)?;
     drop(cells);
     mesh.remove_pieces_below_fraction(params.min_piece_fraction);
+    if let Some(opts) = &params.simplify {
+        voxoct_mesh::simplify(&mut mesh, opts);
+    }
     timings.mesh = t.elapsed();
 
     Ok(Reconstruction {

@@ -201,19 +201,23 @@ fn thesis_mode_is_closed_too() {
 #[test]
 fn level_of_detail_halves_resolution_and_stays_closed() {
     let (config, snapshots) = simulate("sphere", 4, 1, true);
+    // Simplification off: it sizes both meshes by the error bound, not the resolution.
     let params = Params {
         leaf_m: 0.002,
         lod: 1,
+        simplify: None,
         ..Params::default()
     };
     let r = reconstruct(&config, snapshots, &params, |_| {}).unwrap();
     r.mesh.check_closed_manifold().unwrap();
-    let fine = run(
+    let fine_params = Params { lod: 0, ..params };
+    let fine = reconstruct(
         &config,
         simulate("sphere", 4, 1, true).1,
-        0.002,
-        MeshOptions::smooth(),
-    );
+        &fine_params,
+        |_| {},
+    )
+    .unwrap();
     assert!(r.mesh.triangles.len() * 2 < fine.mesh.triangles.len());
 }
 

@@ -197,6 +197,18 @@ struct Args {
     /// Taubin smoothing iterations (0 = none).
     #[arg(long, value_name = "N", help_heading = "Meshing")]
     smooth: Option<u32>,
+    /// Simplify the mesh (quadric edge collapse, closed and valid kept) with this largest
+    /// error, metres; a quarter of --leaf is a good value. Off unless this or --triangles.
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "M",
+        help_heading = "Meshing"
+    )]
+    max_error: Option<f32>,
+    /// Simplify down to at most N triangles (within --max-error, default a quarter leaf).
+    #[arg(long, value_name = "N", help_heading = "Meshing")]
+    triangles: Option<usize>,
     /// Leaves hit by fewer triangles count as empty (rejects single errant readings).
     #[arg(long, value_name = "N", help_heading = "Meshing")]
     min_hits: Option<u32>,
@@ -378,6 +390,14 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
         carve: !args.no_carve,
         check_agreement: true,
         min_piece_fraction: args.min_piece,
+        simplify: (args.max_error.is_some() || args.triangles.is_some()).then(|| {
+            voxoct::mesh::Simplify {
+                max_error: args
+                    .max_error
+                    .unwrap_or(voxoct::mesh::Simplify::LEAF_FRACTION * args.leaf),
+                target_triangles: args.triangles,
+            }
+        }),
     };
     let mut bar: Option<ProgressBar> = None;
     let result = reconstruct(&settings.config, snapshots, &params, |stage| {
@@ -534,6 +554,13 @@ fn check_args(args: &Args) -> Result<(), String> {
         return Err(format!(
             "--threshold must be a positive squared edge length in m², got {}",
             args.threshold
+        ));
+    }
+    if let Some(e) = args.max_error
+        && !(e.is_finite() && e >= 0.0)
+    {
+        return Err(format!(
+            "--max-error must be a non-negative number of metres, got {e}"
         ));
     }
     if !(0.0..=1.0).contains(&args.min_piece) {

@@ -30,6 +30,8 @@
 //!   distance stored in each [`Cell`] says the surface is; with `solid` the wall sits on the
 //!   surface itself rather than half a cell outside the outermost marked cells.
 //! - [`Taubin`] smoothing: volume-preserving, positions only.
+//! - [`simplify`]: quadric-error edge collapse bounded by a geometric error, keeping the mesh
+//!   closed, manifold and free of new self-intersections (see [`Simplify`]).
 //!
 //! [`MeshOptions::smooth`] selects the most accurate combination. Area-weighted mean distance
 //! from the mesh to the true surface, in cells, with the cells and their signed distances made
@@ -72,12 +74,14 @@ pub use voxoct_core::{Cell, GridSpec, Octree};
 
 mod bitbox;
 pub mod closure;
+mod collide;
 mod export;
 mod field;
 mod march;
 mod mesh;
 mod options;
 mod par;
+mod simplify;
 mod smooth;
 mod tables;
 
@@ -85,6 +89,10 @@ pub use export::{platform_to_print, print_frame_vertices, to_print_frame, vertex
 pub use field::FILL_LIMIT;
 pub use mesh::{Mesh, MeshStats, TopologyError};
 pub use options::{Floor, MeshError, MeshOptions, Placement, Taubin};
+pub use simplify::{
+    MAX_NORMAL_TURN_DEG, MAX_RETRIES, MIN_QUALITY, MIN_QUALITY_ABSOLUTE, Simplify, SimplifyStats,
+    simplify,
+};
 
 /// Meshes marked cells of one grid (e.g. an octree's leaves and its leaf grid).
 ///
