@@ -63,9 +63,10 @@ fn every_output_format_is_written_z_up_on_the_bed() {
         let b = mesh.stats().bounds.unwrap();
         assert_eq!(b.min.z, 0.0, "{name}: base on the bed");
         assert!((b.min.x + b.max.x).abs() < 1e-3 && (b.min.y + b.max.y).abs() < 1e-3);
-        // The 12 cm sphere, in millimetres, its height along z.
+        // The 12 cm sphere, in millimetres, its height along z (its bottom, which no view
+        // sees under the line of sight, is capped up to about a centimetre above the bed).
         let size = b.max - b.min;
-        assert!((size.z - 120.0).abs() < 6.0, "{name}: {size}");
+        assert!(size.z > 105.0 && size.z < 126.0, "{name}: {size}");
     }
     let ply = std::fs::read(dir.path().join("s.ply")).unwrap();
     let head = String::from_utf8_lossy(&ply[..400]);
@@ -85,7 +86,7 @@ fn every_output_format_is_written_z_up_on_the_bed() {
     );
     let b = read(&dir.path().join("y.stl")).stats().bounds.unwrap();
     assert!(
-        (b.max.y - b.min.y - 120.0).abs() < 6.0 && b.min.y > 0.0,
+        (b.max.y - 120.0).abs() < 6.0 && b.min.y >= 0.0 && b.min.y < 15.0,
         "{b:?}"
     );
 

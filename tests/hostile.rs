@@ -154,7 +154,7 @@ fn d02_same_path_for_two_outputs_is_refused_naming_both_flags() {
     std::os::unix::fs::symlink("x.stl", dir.path().join("l.stl")).unwrap();
     for (a, b) in [
         (["--out", "same.stl"], ["--stats", "same.stl"]),
-        (["--out", "x.stl"], ["--preview", "./sub/../x.stl"]),
+        (["--out", "x.stl"], ["--stats", "./sub/../x.stl"]),
         (["--out", "x.stl"], ["--stats", "l.stl"]),
     ] {
         let Some(o) = scan(&[&a[..], &b[..]].concat(), dir.path()) else {

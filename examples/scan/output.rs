@@ -16,10 +16,17 @@ pub enum Up {
     Y,
 }
 
-/// The format `--format` names, else the one `--out`'s extension names.
+/// The format `--format` names, else the one `--out`'s extension names; STL for standard
+/// output (`-`) and for what is not a file name with an extension of its own (a device, a
+/// FIFO, a directory: the output check then says what is wrong with it).
 pub fn format(args: &Args) -> Result<MeshFormat, String> {
+    let out = &args.out;
+    let not_a_file_name = out.as_os_str() == "-"
+        || out.as_os_str().to_string_lossy().ends_with('/')
+        || std::fs::metadata(out).is_ok_and(|m| !m.is_file());
     match &args.format {
         Some(name) => name.parse().map_err(|e| format!("--format: {e}")),
+        None if out.extension().is_none() && not_a_file_name => Ok(MeshFormat::Stl),
         None => MeshFormat::from_path(&args.out).map_err(|e| {
             format!(
                 "--out {}: {e} (or choose one with --format)",

@@ -15,6 +15,9 @@
 //!    none over a hole or with a squared edge above [`DEFAULT_MAX_EDGE_SQ`], each wound so
 //!    that its normal faces the sensor (the outside of the object).
 //!
+//! 4. **Carve** ([`carve`]): what the frames say of every cell of a grid — seen empty, on a
+//!    seen surface, or unseen — for closing what no view saw (`voxoct_mesh::closure`).
+//!
 //! Recorded scans (a `scan.toml` and 16-bit PNG frames) are read by
 //! [`RecordedScan::open`] and written by [`ScanWriter`] / [`RecordedScan::write`]; the
 //! scanner settings alone live in a [`ScannerConfig`] file.
