@@ -104,10 +104,12 @@ pub fn close_cells(
         }
     }
     let inside = close_coarse(dims, &known);
+    let added = |(i, k): (usize, &Known)| *k == Known::Unknown && inside[i] && !marked[i];
     let mut cells = cells;
+    cells.reserve_exact(known.iter().enumerate().filter(|&x| added(x)).count());
     let sdf = -grid.cell * CLOSED_HITS as f32;
     for (i, k) in known.iter().enumerate() {
-        if *k == Known::Unknown && inside[i] && !marked[i] {
+        if added((i, k)) {
             let i = i as u32;
             let coord = lo + UVec3::new(i % dim.x, i / dim.x % dim.y, i / (dim.x * dim.y));
             cells.push(Cell {
@@ -158,7 +160,7 @@ pub fn close_unknown(dims: [usize; 3], known: &[Known]) -> Vec<bool> {
         .map(|(i, k)| match k {
             Known::Solid => true,
             Known::Empty | Known::Excluded => false,
-            Known::Unknown => g.tree[g.node[i] as usize] != SRC,
+            Known::Unknown => g.tree[g.node(i) as usize] != SRC,
         })
         .collect()
 }
@@ -257,8 +259,10 @@ fn close_coarse(dims: [usize; 3], known: &[Known]) -> Vec<bool> {
 struct Graph {
     /// Box index of each node.
     cell: Vec<u32>,
-    /// Node of each box cell (`u32::MAX` for a terminal cell).
-    node: Vec<u32>,
+    /// Which box cells are nodes (bit per cell) and the count of nodes before each word:
+    /// node of cell `i` = `rank[i / 64]` + the set bits below `i` in its word.
+    is_node: Vec<u64>,
+    rank: Vec<u32>,
     /// Neighbour node in each direction (`u32::MAX`: none).
     nbr: Vec<[u32; 6]>,
     /// Residual capacity towards the neighbour in each direction.
@@ -282,16 +286,33 @@ fn opp(d: usize) -> usize {
 }
 
 impl Graph {
+    /// The node of the unknown box cell `i`.
+    #[inline]
+    fn node(&self, i: usize) -> u32 {
+        let w = self.is_node[i / 64];
+        self.rank[i / 64] + (w & ((1u64 << (i % 64)) - 1)).count_ones()
+    }
+
     fn new(dims: [usize; 3], known: &[Known]) -> Self {
         let [nx, ny, nz] = dims;
-        let mut node = vec![u32::MAX; known.len()];
+        let mut is_node = vec![0u64; known.len().div_ceil(64)];
         let mut cell = Vec::new();
         for (i, k) in known.iter().enumerate() {
             if *k == Known::Unknown {
-                node[i] = cell.len() as u32;
+                is_node[i / 64] |= 1 << (i % 64);
                 cell.push(i as u32);
             }
         }
+        let mut rank = Vec::with_capacity(is_node.len());
+        let mut acc = 0u32;
+        for w in &is_node {
+            rank.push(acc);
+            acc += w.count_ones();
+        }
+        let node = |i: usize| {
+            let w = is_node[i / 64];
+            rank[i / 64] + (w & ((1u64 << (i % 64)) - 1)).count_ones()
+        };
         let n = cell.len();
         let mut nbr = vec![[u32::MAX; 6]; n];
         let mut res = vec![[0u8; 6]; n];
@@ -314,7 +335,7 @@ impl Graph {
                     Some((_, Known::Solid)) => t -= 1,
                     Some((_, Known::Excluded)) => {}
                     Some((q, Known::Unknown)) => {
-                        nbr[v][d] = node[q];
+                        nbr[v][d] = node(q);
                         res[v][d] = 1;
                     }
                 }
@@ -323,7 +344,8 @@ impl Graph {
         }
         Self {
             cell,
-            node,
+            is_node,
+            rank,
             nbr,
             res,
             tr,
