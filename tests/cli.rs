@@ -1,38 +1,13 @@
 //! The `scan` example as a user runs it: a small scan end to end, and every kind of bad input
 //! ending with one clear line on stderr, a non-zero exit, no panic and no file at `--out`.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Output;
 
-/// The `scan` example binary that `cargo test` built next to this test, or `None` with a
-/// note when only this test target was built: `cargo test --test cli` builds no examples,
-/// `cargo test --workspace` (the README's command, and CI's) does.
-fn scan_bin() -> Option<PathBuf> {
-    let exe = std::env::current_exe().unwrap();
-    // target/<profile>/deps/cli-<hash> → target/<profile>/examples/scan
-    let dir = exe.parent().and_then(Path::parent).unwrap();
-    let bin = dir
-        .join("examples")
-        .join(format!("scan{}", std::env::consts::EXE_SUFFIX));
-    if !bin.exists() {
-        eprintln!(
-            "SKIPPED: {} is not built; run `cargo test --workspace`",
-            bin.display()
-        );
-        return None;
-    }
-    Some(bin)
-}
+mod common;
 
 fn scan(args: &[&str], cwd: &Path) -> Option<Output> {
-    let bin = scan_bin()?;
-    Some(
-        Command::new(bin)
-            .args(args)
-            .current_dir(cwd)
-            .output()
-            .unwrap(),
-    )
+    common::run_example("scan", args, cwd)
 }
 
 /// Asserts a clean failure: non-zero exit, one `error:` line naming `needle`, no panic,
@@ -140,7 +115,7 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
     assert!(std::fs::metadata(dir.path().join("p.png")).unwrap().len() > 1000);
 
     // The recorded scan reprocesses to the same mesh.
-    let again = scan_bin()
+    let again = common::example_bin("scan")
         .and_then(|_| {
             scan(
                 &[

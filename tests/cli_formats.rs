@@ -1,37 +1,16 @@
 //! The `scan` example's output formats and frames, and `--model` files as slicers write
 //! them: what a user gets from `--out x.3mf`, `--up`, `--format`, `--model-units`.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Output;
 
 use voxoct::mesh::Mesh;
 use voxoct::stl::glam::Vec3;
 
-/// The `scan` example binary built next to this test (`cargo test --workspace` builds it),
-/// or `None` with a note.
-fn scan_bin() -> Option<PathBuf> {
-    let exe = std::env::current_exe().unwrap();
-    let dir = exe.parent().and_then(Path::parent).unwrap();
-    let bin = dir
-        .join("examples")
-        .join(format!("scan{}", std::env::consts::EXE_SUFFIX));
-    if !bin.exists() {
-        eprintln!(
-            "SKIPPED: {} is not built; run `cargo test --workspace`",
-            bin.display()
-        );
-        return None;
-    }
-    Some(bin)
-}
+mod common;
 
 fn scan(args: &[&str], cwd: &Path) -> Option<Output> {
-    let out = Command::new(scan_bin()?)
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .unwrap();
-    Some(out)
+    common::run_example("scan", args, cwd)
 }
 
 const SMALL: [&str; 6] = ["--snapshots", "4", "--frames", "1", "--leaf", "0.003"];

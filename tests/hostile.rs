@@ -8,32 +8,12 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-/// The example binary `name` next to this test, or `None` (with a note) when not built.
-fn bin(name: &str) -> Option<PathBuf> {
-    let exe = std::env::current_exe().unwrap();
-    let dir = exe.parent().and_then(Path::parent).unwrap();
-    let bin = dir
-        .join("examples")
-        .join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
-    if !bin.exists() {
-        eprintln!(
-            "SKIPPED: {} is not built; run `cargo test --workspace`",
-            bin.display()
-        );
-        return None;
-    }
-    Some(bin)
-}
+mod common;
+
+use common::example_bin as bin;
 
 fn run(name: &str, args: &[&str], cwd: &Path) -> Option<Output> {
-    Some(
-        Command::new(bin(name)?)
-            .args(args)
-            .current_dir(cwd)
-            .env_remove("VOXOCT_TURNTABLE_TOKEN")
-            .output()
-            .unwrap(),
-    )
+    common::run_example(name, args, cwd)
 }
 
 /// A quick simulated scan.
