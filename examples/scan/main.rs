@@ -238,6 +238,8 @@ struct Stats {
     mesh_volume_m3: f64,
     mesh_area_m2: f64,
     closed_manifold: bool,
+    self_intersecting_triangles: usize,
+    valid_solid: bool,
     peak_rss_bytes: u64,
     threads: usize,
     seconds: Seconds,
@@ -345,6 +347,7 @@ fn run(args: &Args) -> Result<(), String> {
     seconds.insert = timings.insert.as_secs_f64();
     seconds.mesh = timings.mesh.as_secs_f64();
     let closed = mesh.check_closed_manifold();
+    let self_intersecting = mesh.self_intersecting_triangles().len();
     if mesh.triangles.is_empty() {
         return Err("the scan produced an empty mesh: is the object inside the clip box? (check [clip] and [rig])".into());
     }
@@ -385,6 +388,8 @@ fn run(args: &Args) -> Result<(), String> {
         mesh_volume_m3: mstats.volume,
         mesh_area_m2: mstats.area,
         closed_manifold: closed.is_ok(),
+        self_intersecting_triangles: self_intersecting,
+        valid_solid: closed.is_ok() && self_intersecting == 0,
         peak_rss_bytes: peak_rss_bytes(),
         threads: rayon::current_num_threads(),
         seconds,
@@ -555,8 +560,10 @@ fn summary(args: &Args, s: &Stats) {
         s.peak_rss_bytes as f64 / 1e6
     );
     eprintln!(
-        "watertight: {}; wrote {} ({})",
+        "watertight: {}; self-intersecting triangles: {}; valid solid: {}; wrote {} ({})",
         if s.closed_manifold { "yes" } else { "NO" },
+        s.self_intersecting_triangles,
+        if s.valid_solid { "yes" } else { "NO" },
         args.out.display(),
         match args.units {
             Units::Mm => "mm",
