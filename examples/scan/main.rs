@@ -347,7 +347,6 @@ fn run(args: &Args) -> Result<(), String> {
     seconds.insert = timings.insert.as_secs_f64();
     seconds.mesh = timings.mesh.as_secs_f64();
     let closed = mesh.check_closed_manifold();
-    let self_intersecting = mesh.self_intersecting_triangles().len();
     if mesh.triangles.is_empty() {
         return Err("the scan produced an empty mesh: is the object inside the clip box? (check [clip] and [rig])".into());
     }
@@ -372,6 +371,7 @@ fn run(args: &Args) -> Result<(), String> {
     seconds.total = t_start.elapsed().as_secs_f64();
 
     let mstats = mesh.stats();
+    let self_intersecting = mesh.self_intersecting_triangles().len();
     let stats = Stats {
         source: settings.source.clone(),
         snapshots: n_snapshots,

@@ -855,10 +855,10 @@ impl Index {
         let (items, flags) = (&self.items[s..e], &self.flags[s..e]);
         let is_dirty = |t: u32| dirty.is_none_or(|d| d[t as usize]);
         let test = |ti: u32, tj: u32, out: &mut Vec<u32>| {
-            let (a, c) = (ck.triangles[ti as usize], ck.triangles[tj as usize]);
-            if ti == tj || !(is_dirty(ti) || is_dirty(tj)) || certified_pair(a, c, &ck.cert) {
+            if ti == tj || !(is_dirty(ti) || is_dirty(tj)) {
                 return;
             }
+            let (a, c) = (ck.triangles[ti as usize], ck.triangles[tj as usize]);
             let a = Tri {
                 idx: a,
                 k: ck.facts[ti as usize].0 as usize,
@@ -877,7 +877,9 @@ impl Index {
         let overlap = |p: &[Vec3A; 2], q: &[Vec3A; 2]| (p[0].cmple(q[1]) & q[0].cmple(p[1])).all();
         // The bucket's proper entries, their flags and boxes together, 64 at a time; `has[r]`:
         // the entries of a block whose flags include the axes `r`.
-        let Scratch { id, fl, bx } = scratch;
+        // `cv`: the triangle's certified vertices (others `u32::MAX`): a pair that shares one
+        // needs no test.
+        let Scratch { id, fl, bx, cv } = scratch;
         let mut n = 0;
         for (&t, &f) in items.iter().zip(flags) {
             if ck.facts[t as usize].0 != NO_AXIS {
@@ -885,14 +887,22 @@ impl Index {
                     id.resize(n + BLOCK, 0);
                     fl.resize(n + BLOCK, 0);
                     bx.resize(n + BLOCK, [Vec3A::ZERO; 2]);
+                    cv.resize(n + BLOCK, [0; 3]);
                 }
                 id[n] = t;
                 fl[n] = f;
                 bx[n] = ck.boxes[t as usize];
+                cv[n] = ck.triangles[t as usize].map(|v| {
+                    if ck.cert.get(v as usize).copied().unwrap_or(false) {
+                        v
+                    } else {
+                        u32::MAX
+                    }
+                });
                 n += 1;
             }
         }
-        let (id, fl, bx) = (&id[..n], &fl[..n], &bx[..n]);
+        let (id, fl, bx, cv) = (&id[..n], &fl[..n], &bx[..n], &cv[..n]);
         for base in (0..n).step_by(BLOCK) {
             let end = (base + BLOCK).min(n);
             // By exact flags, then (summing over supersets) by included axes.
@@ -919,6 +929,7 @@ impl Index {
                     m &= m - 1;
                     if let Some(by) = block.get(y)
                         && overlap(bxx, by)
+                        && !shares_certified(cv[x], cv[base + y])
                     {
                         test(id[x], id[base + y], out);
                     }
@@ -937,6 +948,7 @@ struct Scratch {
     id: Vec<u32>,
     fl: Vec<u8>,
     bx: Vec<[Vec3A; 2]>,
+    cv: Vec<[u32; 3]>,
 }
 
 /// Morton codes of the cells of every included triangle's range, with the triangle and the
@@ -993,8 +1005,9 @@ fn for_each_cell(
     }
 }
 
-/// Whether the pair shares a vertex whose fan is [`certified`].
+/// Whether two triangles given by their certified vertices (others `u32::MAX`) share one:
+/// a vertex whose fan is [`certified`].
 #[inline]
-fn certified_pair(a: [u32; 3], b: [u32; 3], cert: &[bool]) -> bool {
-    a.iter().any(|&v| cert[v as usize] && b.contains(&v))
+fn shares_certified(a: [u32; 3], b: [u32; 3]) -> bool {
+    a.iter().any(|&v| v != u32::MAX && b.contains(&v))
 }

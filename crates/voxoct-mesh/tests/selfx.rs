@@ -467,3 +467,29 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Closed fans that wind once or twice around their vertex, on a lattice with noise:
+    /// the fan certificate must never skip a pair that the reference finds.
+    #[test]
+    fn winding_fans_match_the_rational_reference(
+        m in 3usize..10,
+        turns in 1u32..3,
+        radius in 2i64..6,
+        noise in prop::collection::vec((-1i64..=1, -1i64..=1, -1i64..=1), 10),
+    ) {
+        let mut verts = vec![[0, 0, 0]];
+        for (i, &(dx, dy, dz)) in noise.iter().enumerate().take(m) {
+            let a = std::f64::consts::TAU * f64::from(turns) * i as f64 / m as f64;
+            let r = radius as f64;
+            verts.push([(r * a.cos()).round() as i64 + dx, (r * a.sin()).round() as i64 + dy, dz]);
+        }
+        let tris: Vec<[u32; 3]> =
+            (0..m).map(|i| [0, 1 + i as u32, 1 + ((i + 1) % m) as u32]).collect();
+        let mesh = to_mesh(&verts, &tris, 0.5, Vec3::new(0.25, -1.0, 3.0));
+        let want = all_pairs(tris.len(), |i, j| reference(&verts, &tris, i, j));
+        prop_assert_eq!(self_intersecting_triangles(&mesh), want);
+    }
+}
