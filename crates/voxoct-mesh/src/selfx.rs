@@ -494,6 +494,8 @@ pub(crate) struct Checker<'a> {
     boxes: Vec<[Vec3A; 2]>,
     fans: Fans,
     cert: Vec<bool>,
+    /// The boxes the index was built from, when not the current ones.
+    index_boxes: Option<Vec<[Vec3A; 2]>>,
     index: Index,
 }
 
@@ -525,6 +527,7 @@ impl<'a> Checker<'a> {
             boxes,
             fans,
             cert,
+            index_boxes,
             index,
         }
     }
@@ -643,7 +646,8 @@ pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> Option<usize> {
             vertices[v as usize] = if *l == UNTANGLE_STEPS {
                 s
             } else {
-                s + (m - s) * 0.5f32.powi(i32::from(*l))
+                // Clamped so that rounding cannot leave the indexed (swept) boxes.
+                (s + (m - s) * 0.5f32.powi(i32::from(*l))).clamp(s.min(m), s.max(m))
             };
         }
         flagged = checker.recheck(vertices, &moved, &mut dirty);
@@ -796,9 +800,12 @@ impl Index {
         let visit: Vec<u32> = match dirty {
             None => Vec::new(),
             Some((tris, _)) => {
+                // The buckets of the dirty triangles' indexed ranges: the cell where a pair
+                // is tested lies in both triangles' indexed ranges.
+                let indexed = ck.index_boxes.as_ref().unwrap_or(&ck.boxes);
                 let mut v = Vec::new();
                 for &t in tris {
-                    let b = ck.boxes[t as usize];
+                    let b = indexed[t as usize];
                     let (lo, hi) = (self.cell(b[0]), self.cell(b[1]));
                     for z in lo[2]..=hi[2] {
                         for y in lo[1]..=hi[1] {
