@@ -289,6 +289,8 @@ struct Stats {
     snapshot_disagreement_m: Option<f32>,
     /// What the sensor's noise explains; above it a warning is printed.
     snapshot_disagreement_limit_m: f32,
+    self_intersecting_triangles: usize,
+    valid_solid: bool,
     peak_rss_bytes: u64,
     threads: usize,
     seconds: Seconds,
@@ -453,6 +455,7 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
     seconds.total = t_start.elapsed().as_secs_f64();
 
     let mstats = mesh.stats();
+    let self_intersecting = mesh.self_intersecting_triangles().len();
     let stats = Stats {
         source: settings.source.clone(),
         snapshots: n_snapshots,
@@ -471,6 +474,8 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
         closed_manifold: closed.is_ok(),
         snapshot_disagreement_m: disagreement_m,
         snapshot_disagreement_limit_m: agreement_limit_m,
+        self_intersecting_triangles: self_intersecting,
+        valid_solid: closed.is_ok() && self_intersecting == 0,
         peak_rss_bytes: peak_rss_bytes(),
         threads: rayon::current_num_threads(),
         seconds,
@@ -636,8 +641,10 @@ fn summary(args: &Args, s: &Stats) {
     );
     eprintln!("source: {}", s.source);
     eprintln!(
-        "watertight: {}; wrote {} ({})",
+        "watertight: {}; self-intersecting triangles: {}; valid solid: {}; wrote {} ({})",
         if s.closed_manifold { "yes" } else { "NO" },
+        s.self_intersecting_triangles,
+        if s.valid_solid { "yes" } else { "NO" },
         args.out.display(),
         output::describe(args)
     );

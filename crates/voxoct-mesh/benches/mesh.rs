@@ -4,7 +4,9 @@ use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use voxoct_mesh::glam::{UVec3, Vec3};
-use voxoct_mesh::{Cell, GridSpec, Mesh, MeshOptions, Mesher, Placement, mesh_cells};
+use voxoct_mesh::{
+    Cell, GridSpec, Mesh, MeshOptions, Mesher, Placement, mesh_cells, self_intersecting_triangles,
+};
 
 /// Every 1 mm cell whose box meets a sphere of radius `r` metres (a 15 cm object for
 /// r = 0.075), with the signed distance of its centre.
@@ -88,9 +90,23 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
+/// The exact self-intersection test on the smooth mesh of the 15 cm sphere shell.
+fn bench_self_intersections(c: &mut Criterion) {
+    let (cells, grid) = sphere_shell(0.075);
+    let mesh = mesh_cells(&cells, &grid, &MeshOptions::smooth()).unwrap();
+    let mut g = c.benchmark_group("self_intersections");
+    g.throughput(Throughput::Elements(mesh.triangles.len() as u64));
+    g.bench_with_input(
+        BenchmarkId::new("smooth_sphere", mesh.triangles.len()),
+        &mesh,
+        |b, mesh| b.iter(|| black_box(self_intersecting_triangles(mesh).len())),
+    );
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10);
-    targets = bench
+    targets = bench, bench_self_intersections
 }
 criterion_main!(benches);

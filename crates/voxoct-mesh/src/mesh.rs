@@ -100,6 +100,14 @@ pub enum TopologyError {
         /// Signed volume, cubic metres.
         volume: f64,
     },
+    /// Triangles cut through each other (see [`crate::self_intersecting_triangles`]).
+    #[error("{triangles} triangles intersect others (the first is triangle {first})")]
+    SelfIntersecting {
+        /// How many triangles intersect another one.
+        triangles: usize,
+        /// The lowest-numbered of them.
+        first: usize,
+    },
 }
 
 /// Summary figures of a mesh.
@@ -320,6 +328,34 @@ impl Mesh {
             return Err(TopologyError::NonPositiveVolume { volume });
         }
         Ok(())
+    }
+
+    /// Checks that the mesh is the boundary of a solid: a closed, oriented 2-manifold with
+    /// positive volume ([`Self::check_closed_manifold`]) whose triangles do not cut through
+    /// each other ([`Self::self_intersecting_triangles`], exact). This is what a CAD kernel,
+    /// a boolean library or a slicer means by watertight.
+    ///
+    /// # Errors
+    /// The first [`TopologyError`] of [`Self::check_closed_manifold`], else
+    /// [`TopologyError::SelfIntersecting`] with the number of self-intersecting triangles.
+    pub fn check_valid_solid(&self) -> Result<(), TopologyError> {
+        self.check_closed_manifold()?;
+        let bad = self.self_intersecting_triangles();
+        match bad.first() {
+            None => Ok(()),
+            Some(&first) => Err(TopologyError::SelfIntersecting {
+                triangles: bad.len(),
+                first: first as usize,
+            }),
+        }
+    }
+
+    /// The triangles that intersect another triangle improperly (more than in their shared
+    /// vertices or edge), or are not proper triangles, in increasing order: see
+    /// [`crate::self_intersecting_triangles`].
+    #[must_use]
+    pub fn self_intersecting_triangles(&self) -> Vec<u32> {
+        crate::selfx::self_intersecting_triangles(self)
     }
 
     /// The edge part of [`Self::check_closed_manifold`], by sorting all directed edges:

@@ -51,7 +51,8 @@ pub enum Placement {
 
 /// Taubin λ/μ smoothing: alternating shrink (λ > 0) and inflate (μ < −λ) Laplacian steps that
 /// remove the staircase without shrinking the volume. Only positions change; connectivity is
-/// untouched, and a step that would make a triangle degenerate is undone.
+/// untouched, and where the smoothed triangles would cut through each other or degenerate,
+/// their vertices are moved back toward their unsmoothed positions.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Taubin {
     /// Number of λ/μ pairs.

@@ -94,6 +94,13 @@ pub(crate) fn map_into<T: Send>(dst: &mut Vec<T>, n: usize, f: impl Fn(usize) ->
     }
 }
 
+/// `[f(&items[0]), f(&items[1]), …]`.
+pub(crate) fn map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync) -> Vec<U> {
+    let mut out = Vec::new();
+    map_into(&mut out, items.len(), |i| f(&items[i]));
+    out
+}
+
 /// Appends to `dst` what `f(i, buffer)` appends for every `i` in `0..n`, in order of `i`
 /// (in parallel: `per_task` consecutive `i` per task, joined in order).
 pub(crate) fn extend_in_order<T: Send>(
@@ -125,18 +132,6 @@ pub(crate) fn extend_in_order<T: Send>(
         for i in 0..n {
             f(i, dst);
         }
-    }
-}
-
-/// Whether `f` holds for any item.
-pub(crate) fn any<T: Sync>(items: &[T], f: impl Fn(&T) -> bool + Sync) -> bool {
-    #[cfg(feature = "parallel")]
-    {
-        items.par_iter().any(&f)
-    }
-    #[cfg(not(feature = "parallel"))]
-    {
-        items.iter().any(f)
     }
 }
 

@@ -2,9 +2,10 @@
 
 use voxoct_core::glam::{Vec3, Vec3A};
 
-use crate::mesh::{Mesh, triangle_area};
+use crate::mesh::Mesh;
 use crate::options::Taubin;
 use crate::par;
+use crate::selfx;
 
 /// Vertex neighbours (each undirected mesh edge once per end), CSR.
 fn neighbours(mesh: &Mesh) -> (Vec<u32>, Vec<u32>) {
@@ -45,17 +46,6 @@ fn step(src: &[Vec3A], dst: &mut [Vec3A], start: &[u32], adj: &[u32], f: f32) {
     });
 }
 
-fn any_degenerate(mesh: &Mesh, v: &[Vec3]) -> bool {
-    par::any(&mesh.triangles, |&t| triangle_area(v, t).1)
-}
-
-fn has_duplicates(v: &[Vec3]) -> bool {
-    let key = |p: &Vec3| p.to_array().map(|x| if x == 0.0 { 0 } else { x.to_bits() });
-    let mut k: Vec<[u32; 3]> = v.iter().map(key).collect();
-    par::sort(&mut k);
-    k.windows(2).any(|w| w[0] == w[1])
-}
-
 fn run(mesh: &Mesh, start: &[u32], adj: &[u32], opts: &Taubin, iterations: u32) -> Vec<Vec3> {
     // SIMD lanes; the arithmetic is per lane, so the result is that of `Vec3` bit for bit.
     let mut cur: Vec<Vec3A> = mesh.vertices.iter().map(|&p| p.into()).collect();
@@ -68,21 +58,19 @@ fn run(mesh: &Mesh, start: &[u32], adj: &[u32], opts: &Taubin, iterations: u32) 
     cur.into_iter().map(Vec3::from).collect()
 }
 
-/// Smooths `mesh` in place. If the result had a degenerate triangle or two coinciding
-/// vertices, it is discarded and smoothing is retried with half the iterations (down to
-/// none), so the result keeps every property that [`Mesh::check_closed_manifold`] checks.
+/// Smooths `mesh` in place. Where the smoothed triangles would cut through each other (or
+/// degenerate), their vertices are moved back toward their unsmoothed positions until none
+/// does ([`crate::selfx`]'s `untangle`); should the unsmoothed mesh itself not be clean,
+/// smoothing is undone.
 pub(crate) fn taubin(mesh: &mut Mesh, opts: &Taubin) {
     if mesh.vertices.is_empty() || opts.iterations == 0 {
         return;
     }
     let (start, adj) = neighbours(mesh);
-    let mut iterations = opts.iterations;
-    while iterations > 0 {
-        let v = run(mesh, &start, &adj, opts, iterations);
-        if !any_degenerate(mesh, &v) && !has_duplicates(&v) {
-            mesh.vertices = v;
-            return;
-        }
-        iterations /= 2;
+    let smoothed = run(mesh, &start, &adj, opts, opts.iterations);
+    drop((start, adj));
+    let safe = std::mem::replace(&mut mesh.vertices, smoothed);
+    if selfx::untangle(mesh, &safe).is_none() {
+        mesh.vertices = safe;
     }
 }

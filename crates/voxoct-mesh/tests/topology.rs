@@ -1,5 +1,6 @@
 //! The guarantee: for any set of cells and any options the mesh is a closed, oriented
-//! 2-manifold with positive volume.
+//! 2-manifold with positive volume whose triangles do not cut through each other (a valid
+//! solid).
 
 use proptest::prelude::*;
 use voxoct_mesh::glam::{UVec3, Vec3};
@@ -53,10 +54,11 @@ fn all_options() -> Vec<MeshOptions> {
     out
 }
 
-/// Checks the mesh; an empty mesh is fine only when no cell can produce a surface.
+/// Checks that the mesh is a valid solid (closed, oriented, no self-intersection); an empty
+/// mesh is fine only when no cell can produce a surface.
 fn check(cells: &[Cell], opts: &MeshOptions) -> Result<Mesh, TestCaseError> {
     let mesh = mesh_cells(cells, &grid(), opts).map_err(|e| TestCaseError::fail(e.to_string()))?;
-    match mesh.check_closed_manifold() {
+    match mesh.check_valid_solid() {
         Ok(()) => {}
         Err(TopologyError::Empty) => {}
         Err(e) => return Err(TestCaseError::fail(format!("{opts:?}: {e}"))),
@@ -113,13 +115,13 @@ proptest! {
             if mesh.triangles.is_empty() {
                 continue;
             }
-            mesh.check_closed_manifold().map_err(|e| TestCaseError::fail(format!("{opts:?}: {e}")))?;
+            mesh.check_valid_solid().map_err(|e| TestCaseError::fail(format!("{opts:?}: {e}")))?;
             prop_assert_eq!(mesh.stats().components, before - removed);
             // Every piece left has at least `min` triangles: removing again removes nothing.
             prop_assert_eq!(mesh.remove_small_components(min), 0);
             // Relative removal: what is left is closed, and removing again removes nothing.
             mesh.remove_pieces_below_fraction(0.5);
-            mesh.check_closed_manifold().map_err(|e| TestCaseError::fail(format!("{opts:?}: {e}")))?;
+            mesh.check_valid_solid().map_err(|e| TestCaseError::fail(format!("{opts:?}: {e}")))?;
             prop_assert_eq!(mesh.remove_pieces_below_fraction(0.5), 0);
         }
     }
@@ -129,6 +131,61 @@ proptest! {
         for opts in [MeshOptions::thesis(), MeshOptions::smooth()] {
             check(&cells, &opts)?;
         }
+    }
+}
+
+/// Cells near a noisy signed-distance field of thin shapes (walls one or two cells thick,
+/// small shells, close parallel sheets): where smoothing and sub-cell placement could push
+/// sheets through each other.
+fn noisy_shape(kind: u8, size: f32, thick: f32, tilt: f32, noise: &[f32]) -> Vec<Cell> {
+    let c = Vec3::splat(RES as f32 / 2.0);
+    let n = Vec3::new(tilt, 1.0, 0.3 * tilt).normalize();
+    let mut cells = Vec::new();
+    let mut k = 0usize;
+    for z in 0..RES {
+        for y in 0..RES {
+            for x in 0..RES {
+                let p = Vec3::new(x as f32, y as f32, z as f32) + 0.5 - c;
+                let d = match kind {
+                    // A thin slab.
+                    0 => p.dot(n).abs() - thick,
+                    // A thin spherical shell.
+                    1 => (p.length() - size).abs() - thick,
+                    // Two close parallel slabs.
+                    _ => (p.dot(n).abs() - size * 0.5).abs() - thick,
+                };
+                let e = noise[k % noise.len()];
+                k += 1;
+                if d + e < 0.9 {
+                    cells.push(cell(x, y, z, 1 + (k % 3) as u32, (d + e).clamp(-0.9, 0.9)));
+                }
+            }
+        }
+    }
+    cells
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    #[test]
+    fn noisy_thin_shapes_every_option(
+        kind in 0u8..3,
+        size in 1.5f32..6.0,
+        thick in 0.2f32..1.2,
+        tilt in -1.0f32..1.0,
+        noise in prop::collection::vec(-0.6f32..0.6, 1..97),
+    ) {
+        let cells = noisy_shape(kind, size, thick, tilt, &noise);
+        for opts in all_options() {
+            check(&cells, &opts)?;
+        }
+        // Harder smoothing than the default: more room to tangle.
+        let hard = MeshOptions {
+            smoothing: Some(Taubin { iterations: 40, lambda: 0.9, mu: -0.95 }),
+            ..MeshOptions::smooth()
+        };
+        check(&cells, &hard)?;
     }
 }
 
@@ -405,4 +462,27 @@ fn checker_names_what_is_wrong() {
         m.check_closed_manifold(),
         Err(TopologyError::Degenerate { .. }) | Err(TopologyError::DuplicatePosition { .. })
     ));
+}
+
+#[test]
+fn valid_solid_check_counts_self_intersections() {
+    let m = mesh_cells(&[cell(4, 4, 4, 1, 0.0)], &grid(), &MeshOptions::thesis()).unwrap();
+    m.check_valid_solid().unwrap();
+    assert!(m.self_intersecting_triangles().is_empty());
+    // Two overlapping copies: closed and oriented, but cutting through each other.
+    let mut two = m.clone();
+    let n = m.vertices.len() as u32;
+    let shift = Vec3::new(0.0003, 0.0002, 0.0001);
+    two.vertices.extend(m.vertices.iter().map(|&p| p + shift));
+    two.triangles
+        .extend(m.triangles.iter().map(|t| t.map(|i| i + n)));
+    two.check_closed_manifold().unwrap();
+    let bad = two.self_intersecting_triangles();
+    match two.check_valid_solid() {
+        Err(TopologyError::SelfIntersecting { triangles, first }) => {
+            assert!(triangles > 0);
+            assert_eq!((triangles, first), (bad.len(), bad[0] as usize));
+        }
+        other => panic!("{other:?}"),
+    }
 }
