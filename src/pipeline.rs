@@ -4,8 +4,9 @@
 //! ([`voxoct_depth::FilterChain`]), back-project, transform and clip ([`voxoct_depth::Snapshot`]),
 //! triangulate by pixel adjacency ([`voxoct_depth::triangulate`]), mark the octree leaves every
 //! triangle overlaps ([`voxoct_core::Octree`]), and mesh the marked leaves
-//! ([`voxoct_mesh::mesh_cells`]) — in solid mode together with the cells that no frame could
-//! see ([`voxoct_depth::carve`]). Snapshots are processed in parallel with the `parallel` feature.
+//! ([`voxoct_mesh::mesh_cells`]) — in solid mode after closing what no frame saw with the
+//! smallest surface ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]).
+//! Snapshots are processed in parallel with the `parallel` feature.
 
 use std::time::{Duration, Instant};
 
@@ -53,8 +54,9 @@ pub struct Params {
     /// Drop connected pieces of the mesh with fewer triangles than this fraction of the
     /// largest piece (stray blobs of errant readings, bubbles inside the solid); 0 keeps all.
     pub min_piece_fraction: f32,
-    /// With a solid mesh: fill what no frame could see ([`voxoct_depth::carve`]), so the solid
-    /// closes over the unseen underside instead of leaking into a hollow shell there.
+    /// With a solid mesh: close what no frame saw by a minimum cut between the space seen
+    /// empty and the solid ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]),
+    /// so the solid closes over the unseen underside instead of leaking into a hollow shell.
     pub carve: bool,
     /// Measure how much the snapshots disagree under the rig
     /// ([`Reconstruction::disagreement_m`]): a wrong tilt or axis shows as doubled contours.
@@ -104,8 +106,8 @@ pub enum Stage {
 pub struct Timings {
     /// [`Stage::Filter`].
     pub filter: Duration,
-    /// Measuring the snapshots' disagreement ([`Params::check_agreement`]), part of the
-    /// filter stage.
+    /// Measuring the snapshots' disagreement ([`Params::check_agreement`]), after the
+    /// filter stage and not included in it.
     pub agreement: Duration,
     /// [`Stage::Triangulate`].
     pub triangulate: Duration,

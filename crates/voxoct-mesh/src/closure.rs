@@ -293,6 +293,26 @@ impl Graph {
         self.rank[i / 64] + (w & ((1u64 << (i % 64)) - 1)).count_ones()
     }
 
+    /// The residual capacity that lets `v`'s neighbour in direction `d` be its parent in
+    /// tree `t`: flow runs from parent to child in the source tree, from child to parent
+    /// in the sink tree.
+    #[inline]
+    fn toward(&self, v: usize, d: usize, t: u8) -> u8 {
+        let u = self.nbr[v][d] as usize;
+        if t == SRC {
+            self.res[u][opp(d)]
+        } else {
+            self.res[v][d]
+        }
+    }
+
+    /// `v`'s neighbours that are nodes, with their directions.
+    #[inline]
+    fn neighbours(&self, v: usize) -> impl Iterator<Item = (usize, usize)> + use<> {
+        let nbr = self.nbr[v];
+        (0..6).filter_map(move |d| (nbr[d] != u32::MAX).then_some((d, nbr[d] as usize)))
+    }
+
     fn new(dims: [usize; 3], known: &[Known]) -> Self {
         let [nx, ny, nz] = dims;
         let mut is_node = vec![0u64; known.len().div_ceil(64)];
@@ -371,13 +391,7 @@ impl Graph {
                 i32::from((-self.tr[v]).max(0))
             };
         }
-        let d = p as usize;
-        let u = self.nbr[v][d] as usize;
-        if self.tree[v] == SRC {
-            i32::from(self.res[u][opp(d)])
-        } else {
-            i32::from(self.res[v][d])
-        }
+        i32::from(self.toward(v, p as usize, self.tree[v]))
     }
 
     fn max_flow(&mut self) {
@@ -397,18 +411,8 @@ impl Graph {
             }
             // Growth: look for a neighbour in the other tree, adopting free ones.
             let mut bridge = None;
-            for d in 0..6 {
-                let q = self.nbr[p][d];
-                if q == u32::MAX {
-                    continue;
-                }
-                let q = q as usize;
-                let cap = if self.tree[p] == SRC {
-                    self.res[p][d]
-                } else {
-                    self.res[q][opp(d)]
-                };
-                if cap == 0 {
+            for (d, q) in self.neighbours(p) {
+                if self.toward(q, opp(d), self.tree[p]) == 0 {
                     continue;
                 }
                 if self.tree[q] == FREE {
@@ -551,21 +555,8 @@ impl Graph {
             if (t == SRC && self.tr[v] > 0) || (t == SINK && self.tr[v] < 0) {
                 best = Some((1, TERMINAL as usize));
             } else {
-                for d in 0..6 {
-                    let u = self.nbr[v][d];
-                    if u == u32::MAX {
-                        continue;
-                    }
-                    let u = u as usize;
-                    if self.tree[u] != t {
-                        continue;
-                    }
-                    let cap = if t == SRC {
-                        self.res[u][opp(d)]
-                    } else {
-                        self.res[v][d]
-                    };
-                    if cap == 0 {
+                for (d, u) in self.neighbours(v) {
+                    if self.tree[u] != t || self.toward(v, d, t) == 0 {
                         continue;
                     }
                     if let Some(dist) = self.origin_dist(u)
@@ -583,21 +574,11 @@ impl Graph {
             }
             // No parent: v becomes free; its children become orphans and its neighbours
             // that could reach it become active.
-            for d in 0..6 {
-                let u = self.nbr[v][d];
-                if u == u32::MAX {
-                    continue;
-                }
-                let u = u as usize;
+            for (d, u) in self.neighbours(v) {
                 if self.tree[u] != t {
                     continue;
                 }
-                let cap = if t == SRC {
-                    self.res[u][opp(d)]
-                } else {
-                    self.res[v][d]
-                };
-                if cap > 0 {
+                if self.toward(v, d, t) > 0 {
                     self.active.push_back(u as u32);
                 }
                 let pu = self.parent[u];
