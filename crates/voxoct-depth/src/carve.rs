@@ -12,9 +12,7 @@
 //! [`visibility`] sums this up per cell over all views ([`Seen`]): seen empty by some view,
 //! seen on a surface only, or not seen at all. The meshing's closure of unseen space
 //! (`voxoct_mesh::closure`) takes the cells seen empty as outside and decides the unseen
-//! ones with a minimum cut. [`hidden_cells`] lists the cells of the older rule, the visual
-//! hull: a cell is *hidden* when at least [`MIN_BEHIND`] views put it behind a surface and
-//! none puts it in front or near; it fills every concavity that no view looked into.
+//! ones with a minimum cut.
 
 use crate::{DepthFrame, Intrinsics};
 use voxoct_core::GridSpec;
@@ -34,9 +32,6 @@ pub struct CarveView<'a> {
     pub object_to_camera: Affine3A,
 }
 
-/// Views that must see a cell behind a surface before it counts as hidden.
-pub const MIN_BEHIND: u32 = 2;
-
 /// How a view sees a point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum ViewSees {
@@ -54,9 +49,8 @@ pub enum Seen {
     Empty,
     /// No view sees it empty, some view sees it on its surface (within the margin).
     Surface,
-    /// No view sees it empty or on a surface; at least [`MIN_BEHIND`] see it behind one.
-    Hidden,
-    /// No view sees it at all, and fewer than [`MIN_BEHIND`] see it behind a surface.
+    /// No view sees it in front of or on its surface: it is behind every reading that covers
+    /// it, or covered by none.
     Unseen,
     /// Skipped by the caller's filter.
     Skipped,
@@ -260,13 +254,8 @@ type Corner = [f32; 3];
 struct BlockPlan {
     /// Some view sees every cell of the block in front: all are empty.
     none: bool,
-    /// Views that see every cell behind.
-    behind: u32,
-    /// Views that need the per-cell test.
+    /// Views that need the per-cell test (the others see no cell in front or near).
     mixed: Vec<u32>,
-    /// Views that see every cell behind or unknown: tested only while the count of views
-    /// behind is short of [`MIN_BEHIND`].
-    not_seen: Vec<u32>,
 }
 
 /// What the views say of every cell of `grid` in the box `lo..=hi` (grid coordinates), in
@@ -339,10 +328,8 @@ pub fn visibility(
                         first = k;
                         break;
                     }
-                    BlockSeen::Behind => out.behind += 1,
-                    BlockSeen::Unknown => {}
+                    BlockSeen::Behind | BlockSeen::Unknown | BlockSeen::NotSeen => {}
                     BlockSeen::Mixed(rank) => mixed.push((rank, k as u32)),
-                    BlockSeen::NotSeen => out.not_seen.push(k as u32),
                 }
             }
             if out.none {
@@ -384,7 +371,6 @@ pub fn visibility(
                     out.push(Seen::Empty);
                     continue;
                 }
-                let mut behind = plan.behind;
                 let mut near = false;
                 let mut front = false;
                 if !plan.mixed.is_empty() {
@@ -396,29 +382,14 @@ pub fn visibility(
                                 break;
                             }
                             ViewSees::Near => near = true,
-                            ViewSees::Behind => behind += 1,
-                            ViewSees::Unknown => {}
+                            ViewSees::Behind | ViewSees::Unknown => {}
                         }
                     }
                 }
-                if front {
-                    out.push(Seen::Empty);
-                    continue;
-                }
-                if near {
-                    out.push(Seen::Surface);
-                    continue;
-                }
-                for &k in &plan.not_seen {
-                    if behind >= MIN_BEHIND {
-                        break;
-                    }
-                    if views[k as usize].classify(grid.cell_center(c), margin) == ViewSees::Behind {
-                        behind += 1;
-                    }
-                }
-                out.push(if behind >= MIN_BEHIND {
-                    Seen::Hidden
+                out.push(if front {
+                    Seen::Empty
+                } else if near {
+                    Seen::Surface
                 } else {
                     Seen::Unseen
                 });
@@ -431,35 +402,6 @@ pub fn visibility(
     #[cfg(not(feature = "parallel"))]
     let slabs: Vec<Vec<Seen>> = (lo.z..=hi.z).map(slab).collect();
     slabs.concat()
-}
-
-/// The cells of `grid` in the box `lo..=hi` (grid coordinates) that are hidden from every
-/// view (see the module docs), except those `skip` rejects (e.g. cells already marked).
-///
-/// `margin` is the depth tolerance, metres: the sensor's noise (a few σ) plus half a cell
-/// diagonal. The result is sorted by z, then y, then x.
-#[must_use]
-pub fn hidden_cells(
-    views: &[CarveView<'_>],
-    grid: &GridSpec,
-    lo: UVec3,
-    hi: UVec3,
-    margin: f32,
-    skip: impl Fn(UVec3) -> bool + Sync,
-) -> Vec<UVec3> {
-    if views.is_empty() || lo.cmpgt(hi).any() {
-        return Vec::new();
-    }
-    let dim = hi - lo + UVec3::ONE;
-    visibility(views, grid, lo, hi, margin, skip)
-        .into_iter()
-        .enumerate()
-        .filter(|(_, s)| *s == Seen::Hidden)
-        .map(|(i, _)| {
-            let i = i as u32;
-            lo + UVec3::new(i % dim.x, i / dim.x % dim.y, i / (dim.x * dim.y))
-        })
-        .collect()
 }
 
 #[cfg(test)]
@@ -505,7 +447,7 @@ mod tests {
     }
 
     #[test]
-    fn space_in_front_is_seen_and_space_behind_is_hidden() {
+    fn space_in_front_is_seen_and_space_behind_is_unseen() {
         let rig = Rig {
             tilt_deg: 0.0,
             sensor_position_m: Vec3::new(0.0, 0.0, 1.0),
@@ -521,7 +463,7 @@ mod tests {
             cell: 0.01,
             resolution: 16,
         };
-        let hidden = hidden_cells(
+        let seen = visibility(
             &[view, view],
             &grid,
             UVec3::ZERO,
@@ -529,18 +471,22 @@ mod tests {
             0.004,
             |_| false,
         );
-        assert!(!hidden.is_empty());
-        for c in &hidden {
+        let unseen: Vec<UVec3> = (0..16 * 16 * 16u32)
+            .filter(|&i| seen[i as usize] == Seen::Unseen)
+            .map(|i| UVec3::new(i % 16, i / 16 % 16, i / 256))
+            .collect();
+        assert!(!unseen.is_empty());
+        for c in &unseen {
             assert!(
                 grid.cell_center(*c).z < -0.004,
                 "{c} is in front of the wall"
             );
         }
-        // Every cell well behind the wall is hidden.
+        // Every cell well behind the wall is unseen.
         let behind = (0..16)
             .filter(|&z| grid.cell_center(UVec3::new(0, 0, z)).z < -0.004)
             .count();
-        assert_eq!(hidden.len(), behind * 16 * 16);
+        assert_eq!(unseen.len(), behind * 16 * 16);
     }
 
     /// The per-cell reference: every view classifies every cell.
@@ -560,13 +506,10 @@ mod tests {
                         .iter()
                         .map(|v| v.classify(grid.cell_center(c), margin))
                         .collect();
-                    let behind = seen.iter().filter(|&&s| s == ViewSees::Behind).count() as u32;
                     out.push(if seen.contains(&ViewSees::Front) {
                         Seen::Empty
                     } else if seen.contains(&ViewSees::Near) {
                         Seen::Surface
-                    } else if behind >= MIN_BEHIND {
-                        Seen::Hidden
                     } else {
                         Seen::Unseen
                     });
@@ -642,17 +585,12 @@ mod tests {
         }
         assert_eq!(kinds.len(), 5, "{kinds:?}");
         let count = |k: Seen| want.iter().filter(|&&s| s == k).count();
-        for k in [Seen::Empty, Seen::Surface, Seen::Hidden, Seen::Unseen] {
+        for k in [Seen::Empty, Seen::Surface, Seen::Unseen] {
             assert!(count(k) > 100, "{} cells {k:?}", count(k));
         }
         let got = visibility(&views, &grid, lo, hi, 0.004, |_| false);
         let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
         assert_eq!(differ, 0, "{differ} of {} cells differ", want.len());
-        // `hidden_cells` lists exactly the hidden ones.
-        assert_eq!(
-            hidden_cells(&views, &grid, lo, hi, 0.004, |_| false).len(),
-            count(Seen::Hidden)
-        );
     }
 
     #[test]
@@ -668,7 +606,7 @@ mod tests {
             intrinsics: Intrinsics::KINECT_V1,
             object_to_camera: front.camera_to_object(0.0).inverse(),
         };
-        // The same camera seeing far beyond: nothing is hidden any more.
+        // The same camera seeing far beyond: every cell is seen empty.
         let b = CarveView {
             frame: &far_frame,
             ..a
@@ -678,11 +616,9 @@ mod tests {
             cell: 0.01,
             resolution: 16,
         };
-        assert!(
-            hidden_cells(&[a, b], &grid, UVec3::ZERO, UVec3::splat(15), 0.004, |_| {
-                false
-            })
-            .is_empty()
-        );
+        let seen = visibility(&[a, b], &grid, UVec3::ZERO, UVec3::splat(15), 0.004, |_| {
+            false
+        });
+        assert!(seen.iter().all(|&s| s == Seen::Empty));
     }
 }
