@@ -673,7 +673,7 @@ impl<'a> Collapser<'a> {
         let mut old_sum = Vec3::ZERO;
         let ok = self.ring(u, &mut ring_u)
             && self.ring(w, &mut ring_w)
-            && link_condition(u, w, &ring_u, &ring_w)
+            && link_condition(w, &ring_u, &ring_w)
             && self.shapes_ok(u, w, p, &mut normals, &mut old_sum)
             && self.shapes_ok(w, u, p, &mut normals, &mut old_sum)
             && {
@@ -824,7 +824,7 @@ fn quality(cross_len: f32, a: Vec3, b: Vec3, c: Vec3) -> f32 {
 
 /// The link condition for a closed manifold: `u` and `w` share exactly two neighbours, and
 /// are not both of valence 3 (a tetrahedron would fold onto itself).
-fn link_condition(u: u32, w: u32, ring_u: &[u32], ring_w: &[u32]) -> bool {
+fn link_condition(w: u32, ring_u: &[u32], ring_w: &[u32]) -> bool {
     if ring_u.len() == 3 && ring_w.len() == 3 {
         return false;
     }
@@ -834,7 +834,6 @@ fn link_condition(u: u32, w: u32, ring_u: &[u32], ring_w: &[u32]) -> bool {
             common += 1;
         }
     }
-    let _ = u;
     common == 2
 }
 
@@ -865,21 +864,16 @@ fn counting_sort(cands: &[Candidate], out: &mut Vec<Candidate>) {
     }
 }
 
-/// Triangles of intersecting pairs where at least one triangle changed (has a moved
-/// vertex), each listed once.
+/// The changed triangles (with a moved vertex) that cut through another triangle, by the
+/// exact check ([`crate::selfx`]), in increasing order. Every new intersection involves a
+/// changed triangle; intersections between unchanged ones were in the input.
 fn new_intersections(mesh: &Mesh, moved: &[bool]) -> Vec<u32> {
     let changed = |t: u32| {
         mesh.triangles[t as usize]
             .iter()
             .any(|&k| moved[k as usize])
     };
-    let pairs = crate::collide::intersecting_pairs(mesh);
-    let mut out: Vec<u32> = pairs
-        .into_iter()
-        .filter(|&(a, b)| changed(a) || changed(b))
-        .flat_map(|(a, b)| [a, b])
-        .collect();
-    out.sort_unstable();
-    out.dedup();
+    let mut out = crate::selfx::self_intersecting_triangles(mesh);
+    out.retain(|&t| changed(t));
     out
 }
