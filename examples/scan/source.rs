@@ -126,7 +126,8 @@ fn load_recorded(
     )?;
     let pb = progress.stage("load", None);
     pb.set_message(dir.display().to_string());
-    let mut scan = RecordedScan::open(dir).map_err(|e| format!("--input: {e}"))?;
+    let mut scan = RecordedScan::open_limited(dir, budget::limit_bytes(args))
+        .map_err(|e| format!("--input: {e}"))?;
     if let Some(c) = &config {
         scan.apply_config(c)
             .map_err(|e| format!("--config does not fit {}: {e}", dir.display()))?;
@@ -316,26 +317,6 @@ fn simulate(
     })
 }
 
-/// A `--model` must be a regular file (symlinks followed) of a size a mesh can have.
-fn check_model_file(path: &Path) -> Result<(), String> {
-    let meta = std::fs::metadata(path).map_err(|e| format!("--model {}: {e}", path.display()))?;
-    if !meta.is_file() {
-        return Err(format!(
-            "--model {} is not a regular file (a directory, device or FIFO); name the mesh file",
-            path.display()
-        ));
-    }
-    let max = voxoct::stl::MAX_FILE_BYTES;
-    if meta.len() > max {
-        return Err(format!(
-            "--model {} is {} bytes, more than the {max} a model may have; simplify it first",
-            path.display(),
-            meta.len()
-        ));
-    }
-    Ok(())
-}
-
 /// Loads `--model` as its file's convention says (`--model-units`, `--model-up`), standing on
 /// the platform at its own size, and checks that it fits the clip box while it turns.
 fn load_model(path: &Path, args: &Args, config: &ScannerConfig) -> Result<(Model, String), String> {
@@ -346,7 +327,6 @@ fn load_model(path: &Path, args: &Args, config: &ScannerConfig) -> Result<(Model
             crate::output::Up::Y => voxoct::kinect::ModelUp::Y,
         },
     };
-    check_model_file(path)?;
     let m =
         voxoct::kinect::load_model_as(path, &convention).map_err(|e| format!("--model: {e}"))?;
     let b = m

@@ -449,8 +449,8 @@ impl RecordedScan {
                     reason: "leaves the scan directory through a symbolic link".into(),
                 });
             }
-            read_png_frame_sized(&real, sensor.depth_unit_m, Some((i.width, i.height)))
-                .map_err(|e| match e {
+            read_png_frame_sized(&real, sensor.depth_unit_m, Some((i.width, i.height))).map_err(
+                |e| match e {
                     DepthError::BadFrameFile { reason, .. } => DepthError::BadFrameFile {
                         path: p.clone(),
                         reason,
@@ -460,21 +460,8 @@ impl RecordedScan {
                         message,
                     },
                     e => e,
-                })
-                .and_then(|f| {
-                    let i = sensor.intrinsics;
-                    if (f.width, f.height) == (i.width, i.height) {
-                        Ok(f)
-                    } else {
-                        Err(DepthError::BadFrameFile {
-                            path: p.clone(),
-                            reason: format!(
-                                "frame is {}x{}, the sensor is {}x{}",
-                                f.width, f.height, i.width, i.height
-                            ),
-                        })
-                    }
-                })
+                },
+            )
         };
         #[cfg(feature = "parallel")]
         let loaded: Vec<DepthFrame> = {

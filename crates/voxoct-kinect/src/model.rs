@@ -307,6 +307,10 @@ fn load_model_file(path: &Path) -> Result<(Model, Option<f64>), SourceError> {
         path: path.to_owned(),
         source,
     };
+    voxoct_stl::check_mesh_file(path).map_err(|e| match e {
+        voxoct_stl::StlError::Io(source) => io(source),
+        e => decoder(e),
+    })?;
     let (model, unit) = match format {
         voxoct_stl::MeshFormat::Obj => {
             let text = std::fs::read_to_string(path).map_err(io)?;

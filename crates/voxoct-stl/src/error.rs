@@ -117,7 +117,7 @@ pub enum StlError {
     /// The path is not a regular file (a directory, a device such as `/dev/zero`, a FIFO).
     ///
     /// How to fix: name the STL file itself.
-    #[error("not a regular file ({kind}); an STL model is a file")]
+    #[error("not a regular file ({kind}); a mesh model is a file")]
     NotAFile {
         /// What is there instead.
         kind: &'static str,

@@ -258,6 +258,7 @@ pub fn read_mesh_file(path: impl AsRef<Path>) -> Result<ReadMesh, StlError> {
     let path = path.as_ref();
     (|| {
         let format = MeshFormat::from_path(path)?;
+        crate::check_mesh_file(path)?;
         if format == MeshFormat::ThreeMf {
             // The ZIP reader seeks: no need to hold the compressed file in memory.
             let file = std::io::BufReader::new(std::fs::File::open(path)?);

@@ -50,25 +50,36 @@ pub fn read<R: Read>(r: R) -> Result<Vec<Triangle>, StlError> {
 pub fn read_file(path: impl AsRef<Path>) -> Result<Vec<Triangle>, StlError> {
     let path = path.as_ref();
     (|| {
-        let meta = std::fs::metadata(path)?;
-        if !meta.is_file() {
-            let kind = if meta.is_dir() {
-                "a directory"
-            } else {
-                "a device, FIFO or socket"
-            };
-            return Err(StlError::NotAFile { kind });
-        }
-        if meta.len() > MAX_FILE_BYTES {
-            return Err(StlError::FileTooLarge {
-                len: meta.len(),
-                max: MAX_FILE_BYTES,
-            });
-        }
-        let file = std::fs::File::open(path)?;
-        read(file)
+        check_mesh_file(path)?;
+        read(std::fs::File::open(path)?)
     })()
     .map_err(|e| e.in_file(path))
+}
+
+/// Refuses what a mesh file cannot be: anything but a regular file (symlinks followed) —
+/// a directory, a device such as `/dev/zero`, a FIFO that would block — or a file larger
+/// than [`MAX_FILE_BYTES`]. Every mesh reader of the workspace checks this first.
+///
+/// # Errors
+/// [`StlError::Io`] (the path cannot be examined), [`StlError::NotAFile`],
+/// [`StlError::FileTooLarge`]; not wrapped in [`StlError::File`].
+pub fn check_mesh_file(path: &Path) -> Result<(), StlError> {
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        let kind = if meta.is_dir() {
+            "a directory"
+        } else {
+            "a device, FIFO or socket"
+        };
+        return Err(StlError::NotAFile { kind });
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(StlError::FileTooLarge {
+            len: meta.len(),
+            max: MAX_FILE_BYTES,
+        });
+    }
+    Ok(())
 }
 
 /// Parses STL bytes (see [`read`]).
