@@ -20,7 +20,7 @@ up=""
 "$bin" --help | grep -q -- "--up" && up="--up y"
 out=$(mktemp)
 {
-  echo '```'
+  echo '```text'
   "$bench/fidelity_table.sh" "$bin" default "$up" "$@"
   "$bench/fidelity_table.sh" "$bin" thesis "--thesis $up" "$@" | tail -n +2
   "$bench/fidelity_table.sh" o3d open3d "" "$@" | tail -n +2
