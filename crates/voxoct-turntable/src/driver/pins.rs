@@ -8,9 +8,22 @@ use std::path::PathBuf;
 /// `/dev/gpiochip0`; on a Pi 5 the header is on the RP1 chip, often
 /// `/dev/gpiochip4` on older kernels).
 ///
-/// The defaults, all on the left of the 40-pin header near pin 11: MS1 =
-/// GPIO17 (pin 11), MS2 = GPIO27 (pin 13), MS3 = GPIO22 (pin 15), STEP =
-/// GPIO23 (pin 16), DIR = GPIO24 (pin 18), ENABLE = GPIO25 (pin 22).
+/// The default wiring, all on the left of the 40-pin header near pin 11:
+///
+/// | A4988 pin | Pi GPIO (BCM) | header pin | notes |
+/// |---|---|---|---|
+/// | MS1 | GPIO17 | 11 | microstep select (table on [`Microstep`](super::Microstep)) |
+/// | MS2 | GPIO27 | 13 | |
+/// | MS3 | GPIO22 | 15 | |
+/// | STEP | GPIO23 | 16 | one rising edge per microstep |
+/// | DIR | GPIO24 | 18 | high = positive angles (unless inverted) |
+/// | ENABLE | GPIO25 | 22 | active low; may be tied to GND instead |
+/// | RESET, SLEEP | — | — | tie together (SLEEP pulled high) |
+/// | VDD, GND | 3V3, GND | 1, 6 | logic supply at the Pi's 3.3 V |
+/// | VMOT, GND | motor supply | — | 8–35 V, 100 µF across it; never unplug the motor while powered |
+///
+/// Set the A4988's current limit with its potentiometer before the first
+/// turn.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GpioPins {
     /// The GPIO character device.
@@ -22,7 +35,7 @@ pub struct GpioPins {
     /// Line driving ENABLE (active low), or `None` when ENABLE is tied low.
     pub enable: Option<u32>,
     /// Lines driving MS1, MS2, MS3, or `None` when they are hard-wired (then
-    /// the configured [`Microstep`] must match the wiring).
+    /// the configured [`Microstep`](super::Microstep) must match the wiring).
     pub microstep: Option<[u32; 3]>,
 }
 
