@@ -22,9 +22,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
-use voxoct_turntable::server::token_from_env;
 use voxoct_turntable::{
     GpioPins, Microstep, ServerConfig, SimulatedTurntable, StepperConfig, Turntable, serve,
+    token_from_env,
 };
 
 /// Serve a turntable (A4988 stepper on GPIO, or simulated) over TCP.

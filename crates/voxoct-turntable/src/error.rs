@@ -78,7 +78,7 @@ pub enum TurntableError {
     /// The server refused the shared-secret token (missing or wrong).
     ///
     /// How to fix: pass the client the server's token (`turntable_server
-    /// --token`, or [`TOKEN_ENV`](crate::server::TOKEN_ENV)).
+    /// --token`, or [`TOKEN_ENV`](crate::TOKEN_ENV)).
     #[error("unauthorised: the server refused the token")]
     Unauthorised,
 

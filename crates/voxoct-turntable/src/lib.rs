@@ -12,7 +12,9 @@
 //!   the pins of a Linux GPIO chip, wired as in [`GpioPins`];
 //! * [`RemoteTurntable`]: a table served over TCP by [`serve`] (what the
 //!   program `examples/turntable_server.rs` runs on the Pi), with the
-//!   line-based protocol `VOXOCT-TT/1` specified in [`protocol`].
+//!   line-based protocol `VOXOCT-TT/1` specified in [`protocol`]. The
+//!   shared-secret token's environment variable, for the server and the
+//!   scanner alike, is [`TOKEN_ENV`] (read it with [`token_from_env`]).
 //!
 //! The scan pipeline cannot tell them apart. Positions are whole
 //! **microsteps** (`i64`) counted from home, and angles (`f64` degrees) are
@@ -66,6 +68,7 @@ pub mod protocol;
 mod scale;
 pub mod server;
 mod sim;
+mod token;
 
 use std::time::Duration;
 
@@ -80,6 +83,7 @@ pub use error::{ErrorCode, TurntableError};
 pub use scale::{MAX_ROTATION_DEG, StepScale};
 pub use server::{ServerConfig, ServerHandle, serve};
 pub use sim::SimulatedTurntable;
+pub use token::{TOKEN_ENV, token_from_env};
 
 /// The crates whose traits appear in [`StepperTurntable`]'s bounds:
 /// implement `embedded_hal_02::digital::v2::OutputPin` for your pins and

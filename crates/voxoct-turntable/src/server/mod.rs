@@ -6,11 +6,9 @@
 //! | `mod.rs` | [`ServerConfig`], [`serve`], [`ServerHandle`], [`StopSignal`] |
 //! | `accept.rs` | the accept loop: connection limit, eviction of silent connections |
 //! | `session.rs` | one connection: the handshake phase, then the request phase |
-//! | `token.rs` | [`TOKEN_ENV`], [`token_from_env`]: the token from the environment |
 
 mod accept;
 mod session;
-mod token;
 
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -18,10 +16,8 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-pub use token::{TOKEN_ENV, token_from_env};
-
 use crate::protocol::validate_token;
-use crate::{Turntable, TurntableError};
+use crate::{TOKEN_ENV, Turntable, TurntableError};
 
 /// Server settings. Every wait has a limit, so no client can hold a thread
 /// forever.

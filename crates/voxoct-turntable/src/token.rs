@@ -20,7 +20,7 @@ const OLD_TOKEN_ENV: &str = "VOXOCT_TT_TOKEN";
 /// [`TurntableError::Config`] when the old variable `VOXOCT_TT_TOKEN` is set
 /// (how to fix: rename it to [`TOKEN_ENV`]), or when [`TOKEN_ENV`] is not
 /// valid UTF-8. The token's own rules are checked where it is used
-/// ([`serve`](super::serve), [`RemoteTurntable::connect`](crate::RemoteTurntable::connect)).
+/// ([`serve`](crate::serve), [`RemoteTurntable::connect`](crate::RemoteTurntable::connect)).
 pub fn token_from_env() -> Result<Option<String>, TurntableError> {
     token_from(|name| std::env::var_os(name))
 }
