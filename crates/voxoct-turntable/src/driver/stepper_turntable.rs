@@ -177,35 +177,18 @@ where
         Ok(())
     }
 
-    /// Stops an interrupted move: no further steps, finish the pulse in
-    /// flight, return to idle (bounded by the longest step delay).
-    fn stop_now(&mut self) -> Result<(), TurntableError> {
-        let motion = self.stepper.driver_mut();
-        motion.profile_mut().stop();
-        let give_up = Instant::now() + Duration::from_secs(3);
-        loop {
-            match motion.update() {
-                Ok(false) => return Ok(()),
-                Ok(true) if Instant::now() > give_up => {
-                    return Err(TurntableError::Hardware("could not stop the motor".into()));
-                }
-                Ok(true) => {}
-                Err(e) => return Err(hw("stopping")(e)),
-            }
-        }
-    }
-}
-
-impl<P, T> Turntable for StepperTurntable<P, T>
-where
-    P: OutputPin,
-    P::Error: fmt::Debug,
-    T: fugit_timer::Timer<TIMER_HZ>,
-{
-    fn rotate_by(&mut self, degrees: f64, timeout: Duration) -> Result<f64, TurntableError> {
+    /// Plans a turn before anything moves: `None` for a turn of zero
+    /// microsteps, else the number of microsteps and the signed motor target
+    /// (direction inversion applied).
+    ///
+    /// # Errors
+    /// [`TurntableError::BadAngle`] for an angle the scale refuses or one
+    /// move cannot make, [`TurntableError::TooSlow`] when the ramp needs
+    /// longer than `timeout`.
+    fn plan(&self, degrees: f64, timeout: Duration) -> Result<Option<(u32, i32)>, TurntableError> {
         let steps = self.scale.degrees_to_microsteps(degrees)?;
         if steps == 0 {
-            return Ok(0.0);
+            return Ok(None);
         }
         let n = u32::try_from(steps.unsigned_abs())
             .ok()
@@ -228,13 +211,17 @@ where
         } else {
             signed
         };
+        Ok(Some((n, motor_target)))
+    }
 
-        if self.config.disable_when_idle {
-            self.set_enabled(true)?;
-        }
-        self.stepper
-            .reset_position(0)
-            .map_err(hw("reset position"))?;
+    /// Steps to `motor_target` (from a position reset to 0), watching the
+    /// wall clock; on overrun or a stepping error the motor stops at once.
+    /// Returns the first error and whether the move overran `timeout`.
+    fn step_to(
+        &mut self,
+        motor_target: i32,
+        timeout: Duration,
+    ) -> (Result<(), TurntableError>, bool) {
         let start = Instant::now();
         let mut outcome: Result<(), TurntableError> = Ok(());
         let mut overran = false;
@@ -262,6 +249,45 @@ where
                 outcome = stopped;
             }
         }
+        (outcome, overran)
+    }
+
+    /// Stops an interrupted move: no further steps, finish the pulse in
+    /// flight, return to idle (bounded by the longest step delay).
+    fn stop_now(&mut self) -> Result<(), TurntableError> {
+        let motion = self.stepper.driver_mut();
+        motion.profile_mut().stop();
+        let give_up = Instant::now() + Duration::from_secs(3);
+        loop {
+            match motion.update() {
+                Ok(false) => return Ok(()),
+                Ok(true) if Instant::now() > give_up => {
+                    return Err(TurntableError::Hardware("could not stop the motor".into()));
+                }
+                Ok(true) => {}
+                Err(e) => return Err(hw("stopping")(e)),
+            }
+        }
+    }
+}
+
+impl<P, T> Turntable for StepperTurntable<P, T>
+where
+    P: OutputPin,
+    P::Error: fmt::Debug,
+    T: fugit_timer::Timer<TIMER_HZ>,
+{
+    fn rotate_by(&mut self, degrees: f64, timeout: Duration) -> Result<f64, TurntableError> {
+        let Some((n, motor_target)) = self.plan(degrees, timeout)? else {
+            return Ok(0.0);
+        };
+        if self.config.disable_when_idle {
+            self.set_enabled(true)?;
+        }
+        self.stepper
+            .reset_position(0)
+            .map_err(hw("reset position"))?;
+        let (mut outcome, overran) = self.step_to(motor_target, timeout);
         let made = self.stepper.driver().current_step();
         let made = if self.config.invert_direction {
             -made
