@@ -1,6 +1,6 @@
 //! `turntable_server`: the program the Raspberry Pi runs. It serves one
-//! turntable over TCP with the `VOXOCT-TT/1` protocol (see the
-//! `voxoct-turntable` crate docs); the scanning host connects with
+//! turntable over TCP with the `VOXOCT-TT/1` protocol (see
+//! `voxoct_turntable::protocol`); the scanning host connects with
 //! `RemoteTurntable`.
 //!
 //! ```sh
@@ -13,25 +13,19 @@
 //!
 //! Stop it with Ctrl-C or `SIGTERM`: a turn in progress finishes (with its
 //! deceleration ramp) and gets its reply, clients are told the server is
-//! shutting down, and the program exits with status 0. Without a token anyone who can reach the port can
-//! turn the table: the program refuses to listen beyond loopback without
-//! one unless `--insecure` is given.
+//! shutting down, and the program exits with status 0. Without a token anyone
+//! who can reach the port can turn the table: the library refuses to listen
+//! beyond loopback without one unless `--insecure` is given.
 
-use std::net::{SocketAddr, TcpListener, ToSocketAddrs};
+use std::net::TcpListener;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Duration;
 
 use clap::Parser;
 use voxoct_turntable::{
     GpioPins, Microstep, ServerConfig, SimulatedTurntable, StepperConfig, Turntable, serve,
+    token_from_env,
 };
-
-/// Environment variable read for the token when `--token` is not given: the
-/// same name the scanner (`scan --turntable`) reads.
-const TOKEN_ENV: &str = "VOXOCT_TURNTABLE_TOKEN";
-/// The name older versions read; refused so that a token is never silently dropped.
-const OLD_TOKEN_ENV: &str = "VOXOCT_TT_TOKEN";
 
 /// Serve a turntable (A4988 stepper on GPIO, or simulated) over TCP.
 #[derive(Debug, Parser)]
@@ -95,38 +89,28 @@ struct Args {
     verbose: bool,
 }
 
-fn parse_pin(s: &str, what: &str) -> Result<Option<u32>, String> {
-    if s.eq_ignore_ascii_case("none") {
+/// GPIO line numbers, comma-separated (`17,27,22`), or `none`.
+fn parse_lines<const N: usize>(s: &str, flag: &str) -> Result<Option<[u32; N]>, String> {
+    if s.trim().eq_ignore_ascii_case("none") {
         return Ok(None);
     }
-    s.trim()
-        .parse()
-        .map(Some)
-        .map_err(|_| format!("--{what}: {s:?} is neither a GPIO line number nor `none`"))
-}
-
-fn parse_ms_pins(s: &str) -> Result<Option<[u32; 3]>, String> {
-    if s.eq_ignore_ascii_case("none") {
-        return Ok(None);
-    }
-    let parts: Vec<&str> = s.split(',').collect();
-    let err = || format!("--ms-pins: {s:?} must be three line numbers like 17,27,22, or `none`");
-    if parts.len() != 3 {
-        return Err(err());
-    }
-    let mut out = [0u32; 3];
-    for (o, p) in out.iter_mut().zip(parts) {
-        *o = p.trim().parse().map_err(|_| err())?;
-    }
-    Ok(Some(out))
+    let err =
+        || format!("--{flag}: {s:?} must be {N} GPIO line number(s) like 17,27,22, or `none`");
+    let lines: Vec<u32> = s
+        .split(',')
+        .map(|p| p.trim().parse())
+        .collect::<Result<_, _>>()
+        .map_err(|_| err())?;
+    lines.try_into().map(Some).map_err(|_| err())
 }
 
 fn parse_gear(s: &str) -> Result<(u32, u32), String> {
     let err = || format!("--gear: {s:?} must be TABLE_TEETH:MOTOR_TEETH, e.g. 60:20");
     let (a, b) = s.split_once(':').ok_or_else(err)?;
-    let a: u32 = a.trim().parse().map_err(|_| err())?;
-    let b: u32 = b.trim().parse().map_err(|_| err())?;
-    Ok((a, b))
+    Ok((
+        a.trim().parse().map_err(|_| err())?,
+        b.trim().parse().map_err(|_| err())?,
+    ))
 }
 
 fn stepper_config(args: &Args) -> Result<StepperConfig, String> {
@@ -150,8 +134,8 @@ fn gpio_pins(args: &Args) -> Result<GpioPins, String> {
         chip: args.gpio_chip.clone(),
         step: args.step_pin,
         dir: args.dir_pin,
-        enable: parse_pin(&args.enable_pin, "enable-pin")?,
-        microstep: parse_ms_pins(&args.ms_pins)?,
+        enable: parse_lines::<1>(&args.enable_pin, "enable-pin")?.map(|[n]| n),
+        microstep: parse_lines::<3>(&args.ms_pins, "ms-pins")?,
     })
 }
 
@@ -175,30 +159,9 @@ fn open_gpio(
 }
 
 fn run(args: Args) -> Result<(), String> {
-    if std::env::var_os(OLD_TOKEN_ENV).is_some() && std::env::var_os(TOKEN_ENV).is_none() {
-        return Err(format!(
-            "{OLD_TOKEN_ENV} is no longer read; the token variable is {TOKEN_ENV} (the same as the \
-             scanner's). How to fix: rename the variable"
-        ));
-    }
-    let token = args
-        .token
-        .clone()
-        .or_else(|| std::env::var(TOKEN_ENV).ok().filter(|t| !t.is_empty()));
-    let addrs: Vec<SocketAddr> = args
-        .listen
-        .to_socket_addrs()
-        .map_err(|e| format!("--listen {:?}: not a HOST:PORT address ({e})", args.listen))?
-        .collect();
-    let exposed = addrs.iter().any(|a| !a.ip().is_loopback());
-    if exposed && token.is_none() && !args.insecure {
-        return Err(format!(
-            "--listen {}: refusing to accept the network without a token. How to fix: pass \
-             --token (or set {TOKEN_ENV}), or --insecure if you really mean it",
-            args.listen
-        ));
-    }
-
+    // Read even when --token is given, so that a stale old variable is reported.
+    let env_token = token_from_env().map_err(|e| e.to_string())?;
+    let token = args.token.clone().or(env_token);
     let config = stepper_config(&args)?;
     let table: Box<dyn Turntable + Send> = if args.gpio {
         let pins = gpio_pins(&args)?;
@@ -229,19 +192,17 @@ fn run(args: Args) -> Result<(), String> {
         Box::new(sim)
     };
 
-    let listener = TcpListener::bind(&addrs[..])
-        .map_err(|e| format!("--listen {}: cannot bind ({e})", args.listen))?;
-    let local = listener
-        .local_addr()
-        .map_err(|e| format!("reading the bound address: {e}"))?;
+    let listener = TcpListener::bind(&args.listen)
+        .map_err(|e| format!("--listen {}: cannot bind HOST:PORT ({e})", args.listen))?;
+    let has_token = token.is_some();
     let server_config = ServerConfig {
         token,
+        allow_network_without_token: args.insecure,
         verbose: args.verbose,
-        idle_timeout: Duration::from_secs(600),
         ..ServerConfig::default()
     };
-    let has_token = server_config.token.is_some();
     let handle = serve(listener, table, server_config).map_err(|e| e.to_string())?;
+    let local = handle.local_addr();
     eprintln!(
         "turntable_server: listening on {local} ({}); Ctrl-C to stop",
         if has_token {

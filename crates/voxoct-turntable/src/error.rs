@@ -1,4 +1,6 @@
-//! The one error type of the crate, shared by local and remote tables.
+//! The error of every turntable operation, shared by local and remote
+//! tables, and the wire codes it is reported under. (Parsing a request line
+//! has its own error, [`RequestError`](crate::protocol::RequestError).)
 
 use std::time::Duration;
 
@@ -9,6 +11,7 @@ use std::time::Duration;
 /// the local table behind the server wherever the wire has a code for them
 /// ([`ErrorCode`]), so the pipeline can handle both alike.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum TurntableError {
     /// The operation did not finish within its timeout.
     ///
@@ -60,8 +63,8 @@ pub enum TurntableError {
 
     /// The peer sent something that does not follow the protocol.
     ///
-    /// How to fix: make sure both ends speak `VOXOCT-TT/1` as described on the
-    /// crate's front page.
+    /// How to fix: make sure both ends speak `VOXOCT-TT/1` as described in
+    /// [`protocol`](crate::protocol).
     #[error("protocol error: {0}")]
     Protocol(String),
 
@@ -74,8 +77,8 @@ pub enum TurntableError {
 
     /// The server refused the shared-secret token (missing or wrong).
     ///
-    /// How to fix: pass the token given to the server with `--token` (or its
-    /// environment variable) to the client.
+    /// How to fix: pass the client the server's token (`turntable_server
+    /// --token`, or [`TOKEN_ENV`](crate::TOKEN_ENV)).
     #[error("unauthorised: the server refused the token")]
     Unauthorised,
 
@@ -148,7 +151,8 @@ impl TurntableError {
     }
 }
 
-/// The error codes of `ERR <code> <message>` replies (see the crate docs).
+/// The error codes of `ERR <code> <message>` replies (see
+/// [`protocol`](crate::protocol)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ErrorCode {
     /// `BAD_REQUEST`: malformed line, unknown command, bad argument.

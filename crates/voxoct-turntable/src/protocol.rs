@@ -1,6 +1,87 @@
-//! The `VOXOCT-TT/1` wire protocol: constants, request and reply lines, and
-//! a bounded line reader. The protocol itself is specified on the crate's
-//! front page.
+//! The `VOXOCT-TT/1` wire protocol: its specification, constants, request
+//! and reply lines (and, inside the crate, a bounded line reader).
+//!
+//! The Pi runs the server ([`serve`](crate::serve)); the scanning host
+//! connects as the client ([`RemoteTurntable`](crate::RemoteTurntable)).
+//! (The thesis used Lidgren over UDP; this is TCP.) The protocol is
+//! line-based text, so it can be spoken from any language, or typed into
+//! `nc`:
+//!
+//! * **Transport**: one TCP connection; default port 7878. Every message is
+//!   one line of UTF-8 text ending in `\n` (a `\r` before it is ignored), at
+//!   most [`MAX_LINE_LEN`] = 256 bytes including the `\n`. Words
+//!   are separated by single spaces (the server accepts any ASCII
+//!   whitespace). Numbers are decimal (`-45`, `0.45`, `1e2`), in degrees;
+//!   timeouts are whole milliseconds.
+//! * **Handshake**: the client's first line is `VOXOCT-TT/1` or
+//!   `VOXOCT-TT/1 <token>` (the token: 1–128 printable ASCII bytes without
+//!   spaces). The server answers `OK VOXOCT-TT/1` and the session starts, or
+//!   answers an error and closes the connection: `ERR VERSION ...` when the
+//!   client names another version `VOXOCT-TT/<n>`, `ERR UNAUTHORISED ...`
+//!   when the server has a token and the client's is missing or wrong
+//!   (compared in constant time, answered after a 100 ms delay),
+//!   `ERR BUSY ...` when another client's session is open, `ERR BAD_REQUEST
+//!   ...` for anything else, `ERR TIMEOUT ...` after 3 s without a
+//!   handshake.
+//! * **Requests** (one at a time; the client waits for each reply):
+//!
+//!   | request | reply | meaning |
+//!   |---|---|---|
+//!   | `ROTATE <degrees> [<timeout_ms>]` | `OK <degrees turned>` | turn by a signed angle (positive = forward), at most 3600° in magnitude; blocks until the turn is done; the reply is the angle really turned (whole microsteps). `timeout_ms` in 1..=3600000, default 60000, capped by the server (600000) |
+//!   | `ANGLE` | `OK <degrees>` | current angle in `[0, 360)` |
+//!   | `HOME` | `OK 0` | declare the current position to be 0° (no motion) |
+//!   | `PING` | `OK PONG` | liveness check |
+//!   | `QUIT` | `OK BYE` | end the session; the server closes |
+//!
+//! * **Errors**: `ERR <code> <message>`, the message free text to the end
+//!   of the line. Codes ([`ErrorCode`]): `BAD_REQUEST` (malformed line,
+//!   unknown command, bad argument, not UTF-8 — the connection stays open),
+//!   `TOO_LONG` (a line over 256 bytes; the server then closes the
+//!   connection), `BAD_ANGLE` (non-finite or over 3600°), `TIMEOUT` (the
+//!   turn cannot finish within its timeout: refused before moving when the
+//!   planned ramp is too long; stopped where it is when it overruns — ask
+//!   `ANGLE`), `HARDWARE`, `BUSY`, `UNAUTHORISED`, `VERSION`, `INTERNAL`
+//!   (also sent when the server shuts down; it then closes).
+//! * **Time limits** (the defaults of [`ServerConfig`](crate::ServerConfig)):
+//!   the server closes a session idle for 600 s and a connection silent for
+//!   3 s before its handshake; it gives up writing a reply after 5 s.
+//!   [`RemoteTurntable`](crate::RemoteTurntable) waits at most 5 s for a
+//!   reply, or the turn's timeout plus 5 s for `ROTATE`
+//!   ([`ClientTimeouts`](crate::ClientTimeouts)). When the server closes a
+//!   session on its own (idle timeout, shutdown) it first sends one
+//!   unsolicited `ERR` line; a client should therefore treat any line or EOF
+//!   that arrives while it is idle as the end of the session (nothing it
+//!   sends later would be executed). `RemoteTurntable` checks for this
+//!   before each request and reconnects transparently.
+//! * **One client at a time**: a second client is *refused* with `ERR BUSY`
+//!   while a session is open (two scanning hosts turning one table would
+//!   ruin both scans); it may retry once the first disconnects. At most 8
+//!   connections are handled at once; when all are taken, a connection
+//!   still silent in its handshake is closed to make room, and only when
+//!   there is none does the newcomer get `ERR BUSY` at once.
+//! * **Client gone mid-turn**: the turn completes (stopping a loaded table
+//!   abruptly could make it skip), then the session ends and the table is
+//!   free. **Server gone mid-turn**: the client sees the closed connection
+//!   ([`TurntableError::Disconnected`]) or, if the Pi vanished silently,
+//!   [`TurntableError::Timeout`] after the turn's timeout plus the margin —
+//!   never a hang.
+//!
+//! A session, as typed into `nc pi.local 7878` (`>` client, `<` server):
+//!
+//! ```text
+//! > VOXOCT-TT/1 s3cret
+//! < OK VOXOCT-TT/1
+//! > ROTATE 45 10000
+//! < OK 45
+//! > ROTATE 1
+//! < OK 0.9
+//! > ANGLE
+//! < OK 45.9
+//! > ROTATE x
+//! < ERR BAD_REQUEST ROTATE: "x" is not a decimal number of degrees
+//! > QUIT
+//! < OK BYE
+//! ```
 
 use std::io::{self, Read, Write};
 use std::net::{Shutdown, TcpStream};
@@ -28,7 +109,7 @@ pub const MAX_TIMEOUT_MS: u64 = 3_600_000;
 ///
 /// # Errors
 /// [`TurntableError::Config`] saying what is wrong (never echoing the token).
-pub fn validate_token(token: &str) -> Result<(), TurntableError> {
+pub(crate) fn validate_token(token: &str) -> Result<(), TurntableError> {
     if token.is_empty() || token.len() > MAX_TOKEN_LEN {
         return Err(TurntableError::Config(format!(
             "token: must be 1 to {MAX_TOKEN_LEN} bytes long (it is {})",
@@ -46,7 +127,7 @@ pub fn validate_token(token: &str) -> Result<(), TurntableError> {
 /// Compares two byte strings in time that depends only on their lengths,
 /// not on where they differ.
 #[must_use]
-pub fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+pub(crate) fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
     let mut diff = a.len() ^ b.len();
     for i in 0..a.len().max(b.len()) {
         let x = a.get(i).copied().unwrap_or(0);
@@ -76,24 +157,57 @@ pub enum Request {
     Quit,
 }
 
+/// Why a request line was refused; sent as the message of a
+/// `BAD_REQUEST` reply (the connection stays open).
+///
+/// How to fix: send one of the requests listed in the module docs, spelled
+/// as shown there.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum RequestError {
+    /// The line holds no word.
+    #[error("empty request; expected ROTATE, ANGLE, HOME, PING or QUIT")]
+    Empty,
+    /// The first word is not a command (its first 32 characters).
+    #[error("unknown command {0:?}; expected ROTATE, ANGLE, HOME, PING or QUIT")]
+    UnknownCommand(String),
+    /// `ROTATE` without an angle.
+    #[error("ROTATE needs an angle: ROTATE <degrees> [<timeout_ms>]")]
+    MissingAngle,
+    /// The angle of `ROTATE` is not a decimal number.
+    #[error("ROTATE: {0:?} is not a decimal number of degrees")]
+    NotAnAngle(String),
+    /// The timeout of `ROTATE` is not a whole number of milliseconds in
+    /// `1..=`[`MAX_TIMEOUT_MS`].
+    #[error(
+        "ROTATE: timeout {0:?} must be a whole number of milliseconds in 1..={max}",
+        max = MAX_TIMEOUT_MS
+    )]
+    BadTimeout(String),
+    /// More words than the command takes (the command is named).
+    #[error("too many arguments for {0}")]
+    TooManyArguments(String),
+}
+
 impl Request {
     /// Parses one request line (without its `\n`).
     ///
     /// # Errors
-    /// A message for the `BAD_REQUEST` reply.
-    pub fn parse(line: &str) -> Result<Self, String> {
+    /// [`RequestError`] naming what is wrong; its text is the message of the
+    /// `BAD_REQUEST` reply.
+    pub fn parse(line: &str) -> Result<Self, RequestError> {
         let mut words = line.split_ascii_whitespace();
         let Some(cmd) = words.next() else {
-            return Err("empty request; expected ROTATE, ANGLE, HOME, PING or QUIT".into());
+            return Err(RequestError::Empty);
         };
         let req = match cmd {
             "ROTATE" => {
                 let Some(deg) = words.next() else {
-                    return Err("ROTATE needs an angle: ROTATE <degrees> [<timeout_ms>]".into());
+                    return Err(RequestError::MissingAngle);
                 };
                 let degrees: f64 = deg
                     .parse()
-                    .map_err(|_| format!("ROTATE: {deg:?} is not a decimal number of degrees"))?;
+                    .map_err(|_| RequestError::NotAnAngle(deg.to_string()))?;
                 let timeout = match words.next() {
                     None => None,
                     Some(ms) => {
@@ -101,12 +215,7 @@ impl Request {
                             .parse()
                             .ok()
                             .filter(|ms| (1..=MAX_TIMEOUT_MS).contains(ms))
-                            .ok_or_else(|| {
-                                format!(
-                                    "ROTATE: timeout {ms:?} must be a whole number of \
-                                     milliseconds in 1..={MAX_TIMEOUT_MS}"
-                                )
-                            })?;
+                            .ok_or_else(|| RequestError::BadTimeout(ms.to_string()))?;
                         Some(Duration::from_millis(ms))
                     }
                 };
@@ -117,14 +226,13 @@ impl Request {
             "PING" => Self::Ping,
             "QUIT" => Self::Quit,
             other => {
-                let shown: String = other.chars().take(32).collect();
-                return Err(format!(
-                    "unknown command {shown:?}; expected ROTATE, ANGLE, HOME, PING or QUIT"
+                return Err(RequestError::UnknownCommand(
+                    other.chars().take(32).collect(),
                 ));
             }
         };
         if words.next().is_some() {
-            return Err(format!("too many arguments for {cmd}"));
+            return Err(RequestError::TooManyArguments(cmd.to_string()));
         }
         Ok(req)
     }
@@ -358,19 +466,34 @@ mod tests {
         assert_eq!(r.to_line(), "ROTATE -45.5 2000\n");
         assert_eq!(Request::parse("PING").unwrap(), Request::Ping);
         assert_eq!(Request::parse(" ANGLE ").unwrap(), Request::Angle);
-        for bad in [
-            "",
-            "ROTATE",
-            "ROTATE x",
-            "ROTATE 1 0",
-            "ROTATE 1 -5",
-            "ROTATE 1 99999999999",
-            "PING now",
-            "rotate 1",
-            "FOO",
+        let timeout = |ms: &str| RequestError::BadTimeout(ms.into());
+        for (bad, why) in [
+            ("", RequestError::Empty),
+            ("ROTATE", RequestError::MissingAngle),
+            ("ROTATE x", RequestError::NotAnAngle("x".into())),
+            ("ROTATE 1 0", timeout("0")),
+            ("ROTATE 1 -5", timeout("-5")),
+            ("ROTATE 1 99999999999", timeout("99999999999")),
+            ("PING now", RequestError::TooManyArguments("PING".into())),
+            ("rotate 1", RequestError::UnknownCommand("rotate".into())),
+            ("FOO", RequestError::UnknownCommand("FOO".into())),
         ] {
-            assert!(Request::parse(bad).is_err(), "{bad:?}");
+            assert_eq!(Request::parse(bad), Err(why), "{bad:?}");
         }
+        // The messages sent in BAD_REQUEST replies.
+        assert_eq!(
+            Request::parse("ROTATE x").unwrap_err().to_string(),
+            r#"ROTATE: "x" is not a decimal number of degrees"#
+        );
+        assert_eq!(
+            Request::parse("ROTATE 1 0").unwrap_err().to_string(),
+            r#"ROTATE: timeout "0" must be a whole number of milliseconds in 1..=3600000"#
+        );
+        let long = "X".repeat(40);
+        assert_eq!(
+            Request::parse(&long).unwrap_err(),
+            RequestError::UnknownCommand("X".repeat(32))
+        );
     }
 
     #[test]

@@ -167,10 +167,25 @@ mod tests {
     }
 
     #[test]
-    fn usable_as_trait_object() {
-        let mut b: Box<dyn Turntable> = Box::new(SimulatedTurntable::default());
-        b.rotate_by(90.0, T).unwrap();
-        assert_eq!(b.angle_deg().unwrap(), 90.0);
+    fn boxed_and_borrowed_tables_forward_every_call() {
+        let mut sim = SimulatedTurntable::default();
+        {
+            // Box<dyn> around &mut around &mut dyn: all three forwarding impls.
+            let mut by_ref: &mut dyn Turntable = &mut sim;
+            let mut table: Box<dyn Turntable + '_> = Box::new(&mut by_ref);
+            assert_eq!(table.rotate_by(90.0, T).unwrap(), 90.0);
+            assert_eq!(table.rotate_by(-1.0, T).unwrap(), -0.9);
+            assert_eq!(table.angle_deg().unwrap(), 89.1);
+            let err = table.rotate_by(f64::NAN, T).unwrap_err();
+            assert!(matches!(err, TurntableError::BadAngle { .. }), "{err}");
+            table.home().unwrap();
+            assert_eq!(table.angle_deg().unwrap(), 0.0);
+        }
+        // The calls reached the simulated table itself.
+        assert_eq!(sim.turns(), 2);
+        assert_eq!(sim.position_microsteps(), 0);
+        assert_eq!(sim.rotate_by(45.0, T).unwrap(), 45.0);
+        assert_eq!(sim.position_microsteps(), 100);
     }
 
     proptest! {
