@@ -179,9 +179,8 @@ impl CarveView<'_> {
     /// `z > 0`) and depth.
     #[inline]
     fn project_any(&self, p: Vec3) -> Corner {
-        let i = &self.intrinsics;
-        let q = self.object_to_camera.transform_point3(p);
-        [q.x * i.fx / q.z + i.cx, q.y * i.fy / q.z + i.cy, q.z]
+        self.intrinsics
+            .project_any(self.object_to_camera.transform_point3(p))
     }
 
     /// The verdict of this view for every cell whose centre lies in the box with these
