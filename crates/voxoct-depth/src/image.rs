@@ -183,10 +183,10 @@ pub fn depth_image(frame: &DepthFrame) -> Result<RgbImage, FrameError> {
 /// from dark red (one frame missed it) to bright red (all of them did).
 ///
 /// ```
-/// use voxoct_depth::{DepthFrame, FilterChain, snapshot_image};
 /// use voxoct_depth::DepthFrame;
 /// use voxoct_depth::filter::FilterChain;
 /// use voxoct_depth::image::snapshot_image;
+/// let mut a = DepthFrame::empty(2, 1, 0.001);
 /// a.data = vec![500, 600];
 /// let mut b = a.clone();
 /// b.data[1] = 0;
