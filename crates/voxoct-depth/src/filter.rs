@@ -71,7 +71,7 @@ pub enum Filter {
     /// Spatial: drops a reading that differs from most of its 3×3 neighbours — precisely,
     /// when more than half of its valid neighbours lie beyond `k·σ(z)` plus one depth unit
     /// (the quantisation step) on the same side, σ being the Kinect v1 noise
-    /// ([`kinect_v1_sigma`]); for an odd count, when the neighbours' median lies beyond
+    /// ([`crate::noise::kinect_v1_sigma`]); for an odd count, when the neighbours' median lies beyond
     /// the threshold. Also drops a reading with fewer than two valid neighbours. These are
     /// the single errant values and the "flying pixels" between a depth edge's two sides
     /// that made the thesis's protrusions. A plane, however steep, passes: a linear ramp

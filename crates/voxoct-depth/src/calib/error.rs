@@ -26,7 +26,7 @@ pub enum CalibError {
 
     /// RANSAC found no plane with enough inliers.
     ///
-    /// How to fix: scan the empty platform, or raise [`RansacOptions::threshold_m`] for a
+    /// How to fix: scan the empty platform, or raise [`super::RansacOptions::threshold_m`] for a
     /// noisy sensor.
     #[error("no plane found: the best candidate has {inliers} inliers of {points} points")]
     NoPlane {

@@ -8,43 +8,8 @@
 //! - [`alignment_residual`]: how much the snapshots disagree under a rig;
 //! - [`CalibError`].
 //!
-//! The rig ([`Rig`]) has four numbers: the tilt and the sensor position `(x, y, z)` in the
-//! platform frame. Two measurements recover them:
-//!
-//! 1. **The platform plane** ([`calibrate_platform`]): the platform's top is the plane
-//!    `y = 0` of the platform frame. Its points (picked near `y = 0` under the starting
-//!    rig, so the floor and the object's upper part stay out) are fitted by RANSAC, then by
-//!    least squares on the inliers ([`fit_plane_ransac`]). The plane's normal in the camera
-//!    frame is the tilt (and the roll, which the rig model takes as 0 and is only
-//!    reported); its distance to the optical centre is the sensor height `y`. An empty
-//!    platform is best, but the turntable disk around an object works too.
-//! 2. **The turntable axis** ([`calibrate_axis`]): with a wrong `x` or `z` the snapshots,
-//!    turned into the common frame, disagree. The disagreement is measured between every
-//!    pair of snapshots at most [`AxisOptions::max_pair_angle_deg`] apart: each sampled
-//!    point of one snapshot is taken into the other's camera frame, projected to a pixel
-//!    (projective association), and its distance to the plane of that pixel (normal from
-//!    the pixel grid) goes through the robust Geman–McClure loss. A [`nelder_mead`]
-//!    minimiser runs on it from coarse to fine (the loss's scale shrinks from 6 to 1 mm).
-//!
-//! What is observable: `x` and `z` from the disagreement; the tilt from the plane and
-//! (weakly, through the axis's inclination) from the disagreement — [`AxisOptions::free_tilt`]
-//! adds it to the minimisation; `y` **only** from the plane, since a shift along the axis
-//! changes no snapshot's agreement with another. The roll is assumed 0.
-//!
-//! The sensor's `z` is the weakest of the three: between snapshots 45° apart a shift of the
-//! axis along the line of sight moves the object mostly sideways, which only surfaces seen
-//! obliquely and the object's outline reveal. Points within three pixels of a depth edge
-//! are left out all the same (flying pixels there sit behind the surface, a bias `z` would
-//! absorb), so the object should cover a good part of the frame.
-//!
-//! Measured (`tests/calibration.rs` at the workspace root, simulated Kinect v1 scans of 8
-//! snapshots × 3 frames, start off by up to ±10 mm and ±2°): sensor position within 0.3 mm,
-//! tilt within 0.03°; on the bunny scan (8 × 10 frames), within 0.2 mm and 0.02°, in about
-//! 3 s on one core.
-//!
-//! Keep the clip box generous while calibrating: a wrong rig moves the object, so the
-//! axis step widens the scan's clip box by [`AxisOptions::margin_m`] and adds the platform
-//! top, whose disagreement under a wrong tilt also helps.
+//! ARCHITECTURE.md (section voxoct-depth, "Calibration") explains the method and what
+//! is observable.
 
 mod axis;
 mod error;

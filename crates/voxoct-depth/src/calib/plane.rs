@@ -49,7 +49,7 @@ pub(crate) fn camera_points(
 
 // ---- planes --------------------------------------------------------------------------------
 
-/// Options of [`fit_plane_ransac`].
+/// Options of the RANSAC plane fit of [`calibrate_platform`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RansacOptions {
     /// Random three-point candidates tried.
