@@ -8,7 +8,8 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
-use voxoct::depth::{RecordedScan, ScannerConfig};
+use voxoct::depth::ScannerConfig;
+use voxoct::depth::scan::RecordedScan;
 use voxoct::kinect::{SimConfig, SimulatedKinect};
 use voxoct::pipeline::{Params, SnapshotFrames, reconstruct, recorded_snapshots, simulate_scan};
 

@@ -18,10 +18,14 @@ use std::process::ExitCode;
 use clap::Parser;
 use serde::Serialize;
 
-use voxoct::depth::{
-    AxisOptions, CalibSnapshot, Calibration, FilterChain, MANIFEST_FILE, PlatformOptions,
-    RecordedScan, Rig, Snapshot, calibrate, set_rig_in_manifest_text, views_image, write_png_to,
+use voxoct::depth::Rig;
+use voxoct::depth::calib::{
+    AxisOptions, CalibOptions, CalibSnapshot, Calibration, calibrate, calibrate_with_platform,
 };
+use voxoct::depth::filter::FilterChain;
+use voxoct::depth::image::{views_image, write_png_to};
+use voxoct::depth::scan::{MANIFEST_FILE, RecordedScan, set_rig_in_manifest_text};
+use voxoct::depth::snapshot::Snapshot;
 use voxoct::output::Outputs;
 
 /// Measure a recorded scan's rig (tilt and sensor position) from the scan itself.
@@ -105,15 +109,14 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         free_tilt: args.free_tilt,
         ..AxisOptions::default()
     };
-    let cal = calibrate(
-        &snaps,
-        platform.as_deref(),
-        &m.sensor.intrinsics,
-        start,
-        &m.clip,
-        &PlatformOptions::default(),
-        &axis,
-    )?;
+    let opts = CalibOptions {
+        axis,
+        ..CalibOptions::default()
+    };
+    let cal = match &platform {
+        Some(p) => calibrate_with_platform(&m.config(), &snaps, p, &opts)?,
+        None => calibrate(&m.config(), &snaps, &opts)?,
+    };
     if let Some(id) = preview_id {
         let views = snaps
             .iter()

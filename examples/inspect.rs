@@ -16,10 +16,12 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
-use voxoct::depth::{
-    FilterChain, RecordedScan, Snapshot, depth_image, difference_image, snapshot_image,
-    views_image, write_png_to,
+use voxoct::depth::filter::FilterChain;
+use voxoct::depth::image::{
+    depth_image, difference_image, snapshot_image, views_image, write_png_to,
 };
+use voxoct::depth::scan::RecordedScan;
+use voxoct::depth::snapshot::Snapshot;
 use voxoct::output::Outputs;
 
 /// Pictures of a recorded scan: frames, filtered snapshots, filter differences, point views.

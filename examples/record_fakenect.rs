@@ -44,7 +44,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
-use voxoct::depth::{ScanWriter, ScannerConfig, SensorConfig};
+use voxoct::depth::scan::ScanWriter;
+use voxoct::depth::{ScannerConfig, SensorConfig};
 use voxoct::kinect::{
     DepthSource, FAKENECT_HEIGHT, FAKENECT_WIDTH, FakenectSource, FakenectWriter, Model, SimConfig,
     SimulatedKinect,
@@ -220,7 +221,7 @@ fn run(args: &Args) -> Result<(), String> {
         let mut replay = FakenectSource::open(&dir)
             .and_then(|s| s.with_intrinsics(intrinsics))
             .map_err(|e| format!("reading back {}: {e}", dir.display()))?;
-        let err = |e: voxoct::depth::DepthError| format!("--expected: {e}");
+        let err = |e: voxoct::depth::scan::ScanError| format!("--expected: {e}");
         let mut scan = ScanWriter::create(expected, config).map_err(err)?;
         let mut read = || replay.grab(t).map_err(|e| format!("reading back: {e}"));
         for _ in 0..args.lead_in {

@@ -1,8 +1,8 @@
 //! The whole reconstruction in one call: depth frames in, a closed oriented mesh out.
 //!
 //! Stages, each a call into one crate: filter the frames of every snapshot
-//! ([`voxoct_depth::FilterChain`]), back-project, transform and clip ([`voxoct_depth::Snapshot`]),
-//! triangulate by pixel adjacency ([`voxoct_depth::triangulate`]), mark the octree leaves every
+//! ([`voxoct_depth::filter::FilterChain`]), back-project, transform and clip ([`voxoct_depth::snapshot::Snapshot`]),
+//! triangulate by pixel adjacency ([`voxoct_depth::triangulate::triangulate`]), mark the octree leaves every
 //! triangle overlaps ([`voxoct_core::Octree`]), and mesh the marked leaves
 //! ([`voxoct_mesh::mesh_cells`]) — in solid mode after closing what no frame saw with the
 //! smallest surface ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]).
@@ -12,11 +12,13 @@ use std::time::{Duration, Instant};
 
 use voxoct_core::glam::{UVec3, Vec3};
 use voxoct_core::{Octree, OctreeError, Triangle};
-use voxoct_depth::{
-    AxisOptions, CalibSnapshot, DEFAULT_MAX_EDGE_SQ, DepthError, DepthFrame, FilterChain,
-    RecordedScan, ScannerConfig, SensorConfig, Snapshot, alignment_residual, kinect_v1_sigma,
-    triangulate,
-};
+use voxoct_depth::calib::{AxisOptions, CalibSnapshot, alignment_residual};
+use voxoct_depth::filter::FilterChain;
+use voxoct_depth::noise::kinect_v1_sigma;
+use voxoct_depth::scan::RecordedScan;
+use voxoct_depth::snapshot::Snapshot;
+use voxoct_depth::triangulate::{DEFAULT_MAX_EDGE_SQ, triangulate};
+use voxoct_depth::{DepthFrame, FrameError, ScannerConfig, SensorConfig};
 use voxoct_kinect::{DepthSource, SimulatedKinect, SourceError};
 use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplify};
 
@@ -129,7 +131,7 @@ pub struct Reconstruction {
     /// Time per stage.
     pub timings: Timings,
     /// How much the snapshots disagree under the rig, metres: the mean point-to-plane
-    /// distance between overlapping snapshots ([`voxoct_depth::alignment_residual`]); `None`
+    /// distance between overlapping snapshots ([`voxoct_depth::calib::alignment_residual`]); `None`
     /// when not measured or not measurable (too few points, one snapshot). Compare it with
     /// [`disagreement_explained_m`].
     pub disagreement_m: Option<f32>,
@@ -158,7 +160,7 @@ pub enum PipelineError {
         angle_deg: f32,
         /// What went wrong.
         #[source]
-        source: DepthError,
+        source: FrameError,
     },
     /// The octree could not be built (leaf larger than the root, non-finite sizes, too deep).
     #[error("octree (root {root_m} m, leaf {leaf_m} m): {source}")]

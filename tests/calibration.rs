@@ -6,10 +6,9 @@
 use std::time::Instant;
 
 use voxoct::core::glam::Vec3;
-use voxoct::depth::{
-    AxisOptions, CalibSnapshot, FilterChain, PlatformOptions, Rig, ScannerConfig, SensorConfig,
-    calibrate,
-};
+use voxoct::depth::calib::{CalibOptions, CalibSnapshot, calibrate};
+use voxoct::depth::filter::FilterChain;
+use voxoct::depth::{Rig, ScannerConfig, SensorConfig};
 use voxoct::kinect::{SimConfig, SimulatedKinect};
 use voxoct::pipeline::{Params, SnapshotFrames, reconstruct, simulate_scan};
 
@@ -93,16 +92,15 @@ fn run_case(case: &Case) {
         let mut start = case.truth;
         start.sensor_position_m += Vec3::new(dx, 0.0, dz);
         start.tilt_deg += dt;
-        let cal = calibrate(
-            &calib,
-            None,
-            &sim.intrinsics,
-            start,
-            &clip,
-            &PlatformOptions::default(),
-            &AxisOptions::default(),
-        )
-        .expect("calibration");
+        let config = ScannerConfig {
+            sensor: SensorConfig {
+                intrinsics: sim.intrinsics,
+                ..SensorConfig::default()
+            },
+            rig: start,
+            clip,
+        };
+        let cal = calibrate(&config, &calib, &CalibOptions::default()).expect("calibration");
         let pos_err = (cal.rig.sensor_position_m - case.truth.sensor_position_m).abs();
         let tilt_err = (cal.rig.tilt_deg - case.truth.tilt_deg).abs();
         println!(

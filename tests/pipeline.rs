@@ -5,7 +5,8 @@
 use parry3d::query::PointQuery;
 use parry3d::shape::TriMesh;
 use voxoct::core::glam::Vec3;
-use voxoct::depth::{RecordedScan, ScanManifest, ScannerConfig, SnapshotEntry};
+use voxoct::depth::ScannerConfig;
+use voxoct::depth::scan::{RecordedScan, ScanManifest, SnapshotEntry};
 use voxoct::kinect::{Model, SimConfig, SimulatedKinect};
 use voxoct::mesh::{Mesh, MeshOptions};
 use voxoct::pipeline::{

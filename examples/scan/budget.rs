@@ -120,7 +120,7 @@ pub fn limit_bytes(args: &Args) -> u64 {
     if let Some(b) = args.max_memory {
         return b;
     }
-    voxoct::depth::default_memory_limit()
+    voxoct::depth::scan::default_memory_limit()
 }
 
 /// Parses `--max-memory`: bytes, or a number with K, M, G or T (powers of 1024).

@@ -26,7 +26,7 @@ use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
-use voxoct::depth::FilterChain;
+use voxoct::depth::filter::FilterChain;
 use voxoct::mesh::{MeshOptions, Placement, Taubin};
 use voxoct::pipeline::{Params, Reconstruction, reconstruct};
 

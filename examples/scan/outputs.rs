@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use voxoct::depth::{MANIFEST_FILE, ScanManifest};
+use voxoct::depth::scan::{MANIFEST_FILE, ScanManifest};
 use voxoct::output::{OutputId, Outputs};
 
 use crate::Args;

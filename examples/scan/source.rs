@@ -3,7 +3,8 @@
 use std::path::Path;
 use std::time::Duration;
 
-use voxoct::depth::{RecordedScan, ScanWriter, ScannerConfig};
+use voxoct::depth::ScannerConfig;
+use voxoct::depth::scan::{RecordedScan, ScanWriter};
 use voxoct::kinect::{DepthSource, FakenectSource, Model, SimConfig, SimulatedKinect};
 use voxoct::pipeline::{SnapshotFrames, recorded_snapshots};
 use voxoct::turntable::{SimulatedTurntable, Turntable};
@@ -59,7 +60,7 @@ pub struct Acquired {
 /// Writes what was acquired as a recorded-scan directory (frames as 16-bit PNG, then
 /// `scan.toml`, rewritten atomically after each snapshot).
 pub fn record(acquired: &Acquired, dir: &Path) -> Result<(), String> {
-    let err = |e: voxoct::depth::DepthError| format!("--record-to {}: {e}", dir.display());
+    let err = |e: voxoct::depth::scan::ScanError| format!("--record-to {}: {e}", dir.display());
     let mut writer = ScanWriter::create(dir, acquired.settings.config).map_err(err)?;
     for s in &acquired.snapshots {
         writer.add_snapshot(s.angle_deg, &s.frames).map_err(err)?;
@@ -115,8 +116,9 @@ fn load_recorded(
         Err(_) => return Err(format!("--input {}: no such directory", dir.display())),
     }
     // The manifest first: the frames it lists must fit in memory.
-    let manifest = voxoct::depth::ScanManifest::load(dir.join(voxoct::depth::MANIFEST_FILE))
-        .map_err(|e| format!("--input: {e}"))?;
+    let manifest =
+        voxoct::depth::scan::ScanManifest::load(dir.join(voxoct::depth::scan::MANIFEST_FILE))
+            .map_err(|e| format!("--input: {e}"))?;
     let frames: usize = manifest.snapshots.iter().map(|s| s.frames.len()).sum();
     budget::check_memory(
         args,

@@ -8,11 +8,12 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use voxoct_depth::filter::FilterChain;
 use voxoct_depth::glam::Vec3;
-use voxoct_depth::{
-    ClipBox, DEFAULT_MAX_EDGE_SQ, DepthFrame, FilterChain, Intrinsics, RecordedScan, Rig,
-    ScannerConfig, Snapshot, triangulate,
-};
+use voxoct_depth::scan::RecordedScan;
+use voxoct_depth::snapshot::Snapshot;
+use voxoct_depth::triangulate::{DEFAULT_MAX_EDGE_SQ, triangulate};
+use voxoct_depth::{ClipBox, DepthFrame, Intrinsics, Rig, ScannerConfig};
 
 struct Data {
     frames: Vec<DepthFrame>,

@@ -179,9 +179,8 @@ impl CarveView<'_> {
     /// `z > 0`) and depth.
     #[inline]
     fn project_any(&self, p: Vec3) -> Corner {
-        let i = &self.intrinsics;
-        let q = self.object_to_camera.transform_point3(p);
-        [q.x * i.fx / q.z + i.cx, q.y * i.fy / q.z + i.cy, q.z]
+        self.intrinsics
+            .project_any(self.object_to_camera.transform_point3(p))
     }
 
     /// The verdict of this view for every cell whose centre lies in the box with these
@@ -281,7 +280,6 @@ pub fn visibility(
     if lo.cmpgt(hi).any() {
         return Vec::new();
     }
-    let (dim_x, dim_y) = ((hi.x - lo.x + 1) as usize, (hi.y - lo.y + 1) as usize);
     #[cfg(feature = "parallel")]
     let pyramids: Vec<Pyramid> = views.par_iter().map(|v| Pyramid::new(v.frame)).collect();
     #[cfg(not(feature = "parallel"))]
@@ -306,6 +304,21 @@ pub fn visibility(
     let projected: Vec<Vec<Corner>> = views.par_iter().map(project).collect();
     #[cfg(not(feature = "parallel"))]
     let projected: Vec<Vec<Corner>> = views.iter().map(project).collect();
+    let plans = plan_blocks(views, &pyramids, &projected, blocks, margin);
+    classify_cells(views, grid, &plans, blocks, lo, hi, margin, skip)
+}
+
+/// Every block's [`BlockPlan`], x-fastest: which views see it wholly in front, and which
+/// need the per-cell test. `projected[k]` holds view `k`'s projections of the block lattice
+/// (`blocks + 1` points a side).
+fn plan_blocks(
+    views: &[CarveView<'_>],
+    pyramids: &[Pyramid],
+    projected: &[Vec<Corner>],
+    blocks: UVec3,
+    margin: f32,
+) -> Vec<BlockPlan> {
+    let lattice = blocks + UVec3::ONE;
     // One row of blocks (along x); the view that saw the last block in front tries first
     // (most blocks are in front of some view; the order does not change the result).
     let plan_row = |row: usize| {
@@ -355,6 +368,22 @@ pub fn visibility(
         .collect();
     #[cfg(not(feature = "parallel"))]
     let plans: Vec<BlockPlan> = (0..n_rows).flat_map(plan_row).collect();
+    plans
+}
+
+/// The per-cell verdicts of [`visibility`] from the blocks' `plans`.
+#[allow(clippy::too_many_arguments)]
+fn classify_cells(
+    views: &[CarveView<'_>],
+    grid: &GridSpec,
+    plans: &[BlockPlan],
+    blocks: UVec3,
+    lo: UVec3,
+    hi: UVec3,
+    margin: f32,
+    skip: impl Fn(UVec3) -> bool + Sync,
+) -> Vec<Seen> {
+    let (dim_x, dim_y) = ((hi.x - lo.x + 1) as usize, (hi.y - lo.y + 1) as usize);
     let slab = |z: u32| {
         let mut out = Vec::with_capacity(dim_x * dim_y);
         let bz = ((z - lo.z) / BLOCK) as usize;

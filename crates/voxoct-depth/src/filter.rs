@@ -10,26 +10,37 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::error::DepthError;
-use crate::types::DepthFrame;
-
-/// Standard deviation of a Kinect v1 depth reading at depth `z`, metres:
-/// `σ(z) = KINECT_V1_SIGMA_COEFF · z²`.
-///
-/// The coefficient, 1.425·10⁻³ m⁻¹, is the axial noise model of Khoshelham & Elberink
-/// (2012) for the Kinect v1 (σ ≈ 1.4 mm at 1 m, 0.7 mm at 0.7 m, 7 mm at 2.2 m); the
-/// noise grows with z² because depth comes from disparity, `z = f·b / d`.
-pub const KINECT_V1_SIGMA_COEFF: f32 = 1.425e-3;
-
-/// Axial noise (one standard deviation) of a Kinect v1 reading at depth `z_m`, metres.
-#[inline]
-#[must_use]
-pub fn kinect_v1_sigma(z_m: f32) -> f32 {
-    KINECT_V1_SIGMA_COEFF * z_m * z_m
-}
+use crate::DepthFrame;
+use crate::error::FrameError;
+use crate::noise::KINECT_V1_SIGMA_COEFF;
 
 /// The valid filter names, as listed in errors.
 pub const FILTER_NAMES: &str = "basic, average, average-discard, median[:MIN_VALID], outlier[:K]";
+
+/// A filter chain that does not parse ([`FilterChain::parse`], [`FilterChain::new`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FilterError {
+    /// A filter name that is not known.
+    ///
+    /// How to fix: use one of the names listed in the message, joined by `+`.
+    #[error("unknown filter `{name}`; valid filters: {valid}")]
+    UnknownFilter {
+        /// The name given.
+        name: String,
+        /// The valid names, comma separated.
+        valid: &'static str,
+    },
+
+    /// A filter chain that names known filters but does not make sense.
+    #[error("filter chain `{chain}`: {reason}")]
+    BadFilterChain {
+        /// The chain as given.
+        chain: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+}
 
 /// One filter stage.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,7 +71,7 @@ pub enum Filter {
     /// Spatial: drops a reading that differs from most of its 3×3 neighbours — precisely,
     /// when more than half of its valid neighbours lie beyond `k·σ(z)` plus one depth unit
     /// (the quantisation step) on the same side, σ being the Kinect v1 noise
-    /// ([`kinect_v1_sigma`]); for an odd count, when the neighbours' median lies beyond
+    /// ([`crate::noise::kinect_v1_sigma`]); for an odd count, when the neighbours' median lies beyond
     /// the threshold. Also drops a reading with fewer than two valid neighbours. These are
     /// the single errant values and the "flying pixels" between a depth edge's two sides
     /// that made the thesis's protrusions. A plane, however steep, passes: a linear ramp
@@ -114,7 +125,7 @@ impl fmt::Display for Filter {
 }
 
 impl FromStr for Filter {
-    type Err = DepthError;
+    type Err = FilterError;
 
     /// One filter by name, with an optional `:PARAMETER`.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
@@ -123,11 +134,11 @@ impl FromStr for Filter {
             Some((n, p)) => (n.trim(), Some(p.trim())),
             None => (s, None),
         };
-        let unknown = || DepthError::UnknownFilter {
+        let unknown = || FilterError::UnknownFilter {
             name: s.to_owned(),
             valid: FILTER_NAMES,
         };
-        let bad_param = |reason: String| DepthError::BadFilterChain {
+        let bad_param = |reason: String| FilterError::BadFilterChain {
             chain: s.to_owned(),
             reason,
         };
@@ -180,7 +191,8 @@ impl FromStr for Filter {
 /// `average+outlier` (see [`FilterChain::default`]).
 ///
 /// ```
-/// use voxoct_depth::{DepthFrame, FilterChain};
+/// use voxoct_depth::DepthFrame;
+/// use voxoct_depth::filter::FilterChain;
 /// let chain: FilterChain = "average".parse()?;
 /// let mut a = DepthFrame::empty(2, 1, 0.001);
 /// let mut b = a.clone();
@@ -192,7 +204,7 @@ impl FromStr for Filter {
 /// assert!((mean.depth_m(0, 0).unwrap() - 0.7015).abs() < 1e-6);
 /// assert_eq!(mean.depth_m(1, 0), None);
 /// assert!(FilterChain::parse("avg").unwrap_err().to_string().contains("average-discard"));
-/// # Ok::<(), voxoct_depth::DepthError>(())
+/// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct FilterChain {
@@ -223,7 +235,7 @@ impl Default for FilterChain {
 impl FilterChain {
     /// A chain from its stages: at most one temporal filter, and only in the first place;
     /// without one, [`Filter::Basic`] is implied. Spatial parameters must be positive.
-    pub fn new(stages: Vec<Filter>) -> Result<Self, DepthError> {
+    pub fn new(stages: Vec<Filter>) -> Result<Self, FilterError> {
         let chain_str = || {
             stages
                 .iter()
@@ -232,14 +244,14 @@ impl FilterChain {
                 .join("+")
         };
         if stages.is_empty() {
-            return Err(DepthError::BadFilterChain {
+            return Err(FilterError::BadFilterChain {
                 chain: String::new(),
                 reason: "empty chain; name at least one filter".into(),
             });
         }
         for (i, f) in stages.iter().enumerate() {
             if f.is_temporal() && i > 0 {
-                return Err(DepthError::BadFilterChain {
+                return Err(FilterError::BadFilterChain {
                     chain: chain_str(),
                     reason: format!(
                         "`{f}` combines the frames of a snapshot and must come first, once"
@@ -249,7 +261,7 @@ impl FilterChain {
             if let Filter::Outlier { k } = f
                 && !(k.is_finite() && *k > 0.0)
             {
-                return Err(DepthError::BadFilterChain {
+                return Err(FilterError::BadFilterChain {
                     chain: chain_str(),
                     reason: format!("outlier's k must be a positive number, got {k}"),
                 });
@@ -263,13 +275,13 @@ impl FilterChain {
     }
 
     /// Parses a chain such as `"median+outlier"` (see [`FilterChain`]); an unknown name is
-    /// an [`DepthError::UnknownFilter`] that lists the valid ones.
-    pub fn parse(s: &str) -> Result<Self, DepthError> {
+    /// an [`FilterError::UnknownFilter`] that lists the valid ones.
+    pub fn parse(s: &str) -> Result<Self, FilterError> {
         let stages = s
             .split('+')
             .map(|part| {
                 if part.trim().is_empty() {
-                    Err(DepthError::BadFilterChain {
+                    Err(FilterError::BadFilterChain {
                         chain: s.to_owned(),
                         reason: format!("empty filter name; valid filters: {FILTER_NAMES}"),
                     })
@@ -279,7 +291,7 @@ impl FilterChain {
             })
             .collect::<Result<Vec<_>, _>>()?;
         Self::new(stages).map_err(|e| match e {
-            DepthError::BadFilterChain { reason, .. } => DepthError::BadFilterChain {
+            FilterError::BadFilterChain { reason, .. } => FilterError::BadFilterChain {
                 chain: s.to_owned(),
                 reason,
             },
@@ -299,7 +311,7 @@ impl FilterChain {
     ///
     /// Errors when `frames` is empty, when a frame's data does not match its size, or
     /// when the frames differ in size or unit.
-    pub fn apply(&self, frames: &[DepthFrame]) -> Result<DepthFrame, DepthError> {
+    pub fn apply(&self, frames: &[DepthFrame]) -> Result<DepthFrame, FrameError> {
         check_frames(frames)?;
         let mut out = match self.stages[0] {
             Filter::Basic => frames[0].clone(),
@@ -321,7 +333,7 @@ impl FilterChain {
 }
 
 impl FromStr for FilterChain {
-    type Err = DepthError;
+    type Err = FilterError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         Self::parse(s)
     }
@@ -340,9 +352,9 @@ impl fmt::Display for FilterChain {
 }
 
 /// Checks that a frame's data matches its size.
-pub(crate) fn check_frame(index: usize, f: &DepthFrame) -> Result<(), DepthError> {
+pub(crate) fn check_frame(index: usize, f: &DepthFrame) -> Result<(), FrameError> {
     if f.data.len() != f.width as usize * f.height as usize {
-        return Err(DepthError::MalformedFrame {
+        return Err(FrameError::MalformedFrame {
             index,
             len: f.data.len(),
             width: f.width,
@@ -350,7 +362,7 @@ pub(crate) fn check_frame(index: usize, f: &DepthFrame) -> Result<(), DepthError
         });
     }
     if !(f.unit_m.is_finite() && f.unit_m > 0.0) {
-        return Err(DepthError::UnitMismatch {
+        return Err(FrameError::UnitMismatch {
             index,
             expected: f.unit_m.abs().max(f32::MIN_POSITIVE),
             found: f.unit_m,
@@ -365,10 +377,10 @@ pub(crate) fn check_frame_size(
     f: &DepthFrame,
     width: u32,
     height: u32,
-) -> Result<(), DepthError> {
+) -> Result<(), FrameError> {
     check_frame(index, f)?;
     if (f.width, f.height) != (width, height) {
-        return Err(DepthError::FrameSizeMismatch {
+        return Err(FrameError::FrameSizeMismatch {
             index,
             expected_w: width,
             expected_h: height,
@@ -380,13 +392,13 @@ pub(crate) fn check_frame_size(
 }
 
 /// Checks that the frames of one snapshot are well formed, of one size and one unit.
-pub(crate) fn check_frames(frames: &[DepthFrame]) -> Result<(), DepthError> {
-    let first = frames.first().ok_or(DepthError::NoFrames)?;
+pub(crate) fn check_frames(frames: &[DepthFrame]) -> Result<(), FrameError> {
+    let first = frames.first().ok_or(FrameError::NoFrames)?;
     for (i, f) in frames.iter().enumerate() {
         check_frame_size(i, f, first.width, first.height)?;
         #[allow(clippy::float_cmp)]
         if f.unit_m != first.unit_m {
-            return Err(DepthError::UnitMismatch {
+            return Err(FrameError::UnitMismatch {
                 index: i,
                 expected: first.unit_m,
                 found: f.unit_m,
@@ -856,7 +868,7 @@ mod tests {
         );
 
         let e = FilterChain::parse("median+blur").unwrap_err();
-        assert!(matches!(&e, DepthError::UnknownFilter { name, .. } if name == "blur"));
+        assert!(matches!(&e, FilterError::UnknownFilter { name, .. } if name == "blur"));
         let msg = e.to_string();
         for n in ["basic", "average", "average-discard", "median", "outlier"] {
             assert!(msg.contains(n), "{msg}");
@@ -873,7 +885,7 @@ mod tests {
             assert!(
                 matches!(
                     FilterChain::parse(bad),
-                    Err(DepthError::BadFilterChain { .. })
+                    Err(FilterError::BadFilterChain { .. })
                 ),
                 "{bad}"
             );
@@ -883,23 +895,23 @@ mod tests {
     #[test]
     fn frames_must_agree() {
         let chain = FilterChain::parse("average").unwrap();
-        assert!(matches!(chain.apply(&[]), Err(DepthError::NoFrames)));
+        assert!(matches!(chain.apply(&[]), Err(FrameError::NoFrames)));
         let a = frame(2, 2, vec![1; 4]);
         let b = frame(2, 1, vec![1; 2]);
         assert!(matches!(
             chain.apply(&[a.clone(), b]),
-            Err(DepthError::FrameSizeMismatch { index: 1, .. })
+            Err(FrameError::FrameSizeMismatch { index: 1, .. })
         ));
         let mut c = a.clone();
         c.unit_m = 0.0005;
         assert!(matches!(
             chain.apply(&[a.clone(), c]),
-            Err(DepthError::UnitMismatch { index: 1, .. })
+            Err(FrameError::UnitMismatch { index: 1, .. })
         ));
         let bad = frame(2, 2, vec![1; 3]);
         assert!(matches!(
             chain.apply(&[bad]),
-            Err(DepthError::MalformedFrame {
+            Err(FrameError::MalformedFrame {
                 index: 0,
                 len: 3,
                 ..

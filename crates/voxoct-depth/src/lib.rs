@@ -1,39 +1,32 @@
 //! voxoct-depth: everything between raw depth frames and the triangles the octree takes.
 //!
-//! 1. **Filter** the N frames of one snapshot into one [`DepthFrame`] with a
-//!    [`FilterChain`]: the thesis's *Basic*, *Average* and *Average-Discard*, a temporal
-//!    *median* that drops flickering pixels, and a spatial *outlier* rejection scaled by
-//!    the Kinect v1 noise σ(z) ∝ z² (default chain: `average+outlier`).
-//! 2. **Back-project, transform and clip** it into a [`Snapshot`]
-//!    ([`Snapshot::from_frame`]): pixel `(u, v)` at depth `z` is
-//!    `((u − cx) z / fx, (v − cy) z / fy, z)` in the camera frame, then
-//!    [`Rig::camera_to_object`] takes it to the common object frame exactly as
-//!    SCAN_FORMAT.md defines, and the [`ClipBox`] turns points outside into holes. The
-//!    grid keeps one point per pixel (holes are NaN), so it can be stored
-//!    ([`Snapshot::save`]) and re-run later with other parameters.
-//! 3. **Triangulate** by pixel adjacency ([`triangulate`]): two triangles per pixel,
-//!    none over a hole or with a squared edge above [`DEFAULT_MAX_EDGE_SQ`], each wound so
-//!    that its normal faces the sensor (the outside of the object).
+//! Three concerns, each a group of public modules with its own error type:
 //!
-//! 4. **Carve** ([`carve`]): what the frames say of every cell of a grid — seen empty, on a
-//!    seen surface, or unseen — for closing what no view saw (`voxoct_mesh::closure`).
+//! - **Frames → triangles** (always built): the shared types at the root ([`DepthFrame`],
+//!   [`Intrinsics`], [`Rig`], [`ClipBox`], [`ScannerConfig`]); [`filter`] turns the frames
+//!   of one snapshot into one ([`filter::FilterChain`]); [`snapshot`] back-projects,
+//!   transforms and clips it into a point grid ([`snapshot::Snapshot`]); [`triangulate`]
+//!   joins neighbouring pixels into triangles; [`carve`] says which cells of a grid the
+//!   frames see empty; [`noise`] is the Kinect v1 noise model they share. Their errors are
+//!   [`FrameError`] (and [`filter::FilterError`] for a chain that does not parse).
+//! - **The recorded-scan directory** ([`scan`], feature `scan-dir`, on by default): a
+//!   `scan.toml` and 16-bit PNG frames (SCAN_FORMAT.md), read, written and edited;
+//!   errors are [`scan::ScanError`], naming the file and the key.
+//! - **Calibration and inspection**: [`calib`] measures the rig from a scan
+//!   ([`calib::CalibError`]); [`image`] draws frames, filter differences and aligned views
+//!   as RGB images and writes PNGs (feature `png`, implied by `scan-dir`).
 //!
-//! Recorded scans (a `scan.toml` and 16-bit PNG frames) are read by
-//! [`RecordedScan::open`] and written by [`ScanWriter`] / [`RecordedScan::write`]; the
-//! scanner settings alone live in a [`ScannerConfig`] file.
+//! Without default features the crate needs only `voxoct-core`, `glam` and `thiserror`: a
+//! depth source can name a [`DepthFrame`] without TOML, PNG or serde.
 //!
-//! Speed (one core, `benches/depth.rs` on the bunny scan, a busy 2-core machine): one
-//! snapshot's depth work — Average over 10 frames of 640×480 (1.7 ms), back-projection,
-//! transform and clip (0.44 ms), triangulation (0.32 ms) — takes 2.4 ms; the default
-//! chain's outlier rejection adds about 2 ms, the median instead of the mean about 1.3 ms.
-//! A Kinect delivers a frame every 33 ms.
+//! ARCHITECTURE.md (section voxoct-depth) explains the design.
 //!
 //! ```
-//! use voxoct_depth::{
-//!     triangulate_vec, ClipBox, DepthFrame, FilterChain, Intrinsics, Rig, Snapshot,
-//!     DEFAULT_MAX_EDGE_SQ,
-//! };
+//! use voxoct_depth::filter::FilterChain;
 //! use voxoct_depth::glam::Vec3;
+//! use voxoct_depth::snapshot::Snapshot;
+//! use voxoct_depth::triangulate::{DEFAULT_MAX_EDGE_SQ, triangulate_vec};
+//! use voxoct_depth::{ClipBox, DepthFrame, Intrinsics, Rig};
 //!
 //! // A small sensor looking straight at a wall 0.5 m away (two noisy frames).
 //! // 5 mm between neighbouring pixels at 0.5 m.
@@ -57,37 +50,24 @@
 //! let tris = triangulate_vec(&snap, DEFAULT_MAX_EDGE_SQ);
 //! assert_eq!(tris.len(), 2 * 7 * 5);
 //! assert!(tris.iter().all(|t| t.scaled_normal().z > 0.0));
-//! # Ok::<(), voxoct_depth::DepthError>(())
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 pub use glam;
 
-mod calibrate;
+#[cfg(feature = "png")]
+mod atomic;
+pub mod calib;
 pub mod carve;
 mod error;
-mod filter;
-mod inspect;
-mod scan;
-mod snapshot;
-mod triangulate;
+pub mod filter;
+pub mod image;
+pub mod noise;
+#[cfg(feature = "scan-dir")]
+pub mod scan;
+pub mod snapshot;
+pub mod triangulate;
 mod types;
 
-pub use calibrate::{
-    AxisOptions, CalibError, CalibSnapshot, Calibration, Minimum, NelderMeadOptions, PlaneFit,
-    PlatformFit, PlatformOptions, RESIDUAL_CAP_M, RansacOptions, alignment_residual, calibrate,
-    calibrate_axis, calibrate_platform, fit_plane_ransac, nelder_mead,
-};
-pub use error::DepthError;
-pub use filter::{FILTER_NAMES, Filter, FilterChain, KINECT_V1_SIGMA_COEFF, kinect_v1_sigma};
-pub use inspect::{
-    DiffStats, RgbImage, depth_image, difference_image, invalid_counts, snapshot_colour,
-    snapshot_image, views_image, write_png, write_png_to,
-};
-pub use scan::{
-    MANIFEST_FILE, MAX_ABS_ANGLE_DEG, MAX_FRAME_SIDE, RecordedScan, SCAN_FORMAT, SCAN_VERSION,
-    ScanManifest, ScanWriter, ScannerConfig, SensorConfig, SnapshotEntry, default_memory_limit,
-    read_png_frame, read_png_frame_sized, set_rig_in_manifest_text, write_png_frame,
-};
-pub use snapshot::{HOLE, Snapshot};
-pub use triangulate::{DEFAULT_MAX_EDGE_SQ, triangulate, triangulate_vec};
-pub use types::{ClipBox, DepthFrame, Intrinsics, Rig};
+pub use error::FrameError;
+pub use types::{ClipBox, DepthFrame, Intrinsics, Rig, ScannerConfig, SensorConfig};

@@ -1,4 +1,5 @@
-//! The basic types every stage shares: frames, intrinsics, the rig and the clip box.
+//! The basic types every stage shares: frames, intrinsics, the rig, the clip box and the
+//! scanner settings that bundle them.
 
 use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 
@@ -112,12 +113,22 @@ impl Intrinsics {
     #[must_use]
     pub fn project(&self, p: Vec3) -> Option<(f32, f32, f32)> {
         (p.z > 0.0).then(|| {
-            (
-                p.x * self.fx / p.z + self.cx,
-                p.y * self.fy / p.z + self.cy,
-                p.z,
-            )
+            let [u, v, z] = self.project_any(p);
+            (u, v, z)
         })
+    }
+
+    /// `[u, v, z]` of a camera-frame point: pixel coordinates (meaningful only for `z > 0`)
+    /// and depth. The one projection formula of the crate ([`Intrinsics::project`] and the
+    /// carving's block test use it, so their results agree exactly).
+    #[inline]
+    #[must_use]
+    pub fn project_any(&self, p: Vec3) -> [f32; 3] {
+        [
+            p.x * self.fx / p.z + self.cx,
+            p.y * self.fy / p.z + self.cy,
+            p.z,
+        ]
     }
 }
 
@@ -175,6 +186,55 @@ impl ClipBox {
     #[must_use]
     pub fn contains(&self, p: Vec3) -> bool {
         p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+}
+
+/// The `[sensor]` table: intrinsics and the depth unit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorConfig {
+    /// Image size, focal lengths and principal point.
+    pub intrinsics: Intrinsics,
+    /// Metres per stored depth value (0.001 = millimetres).
+    pub depth_unit_m: f32,
+}
+
+impl Default for SensorConfig {
+    /// Kinect v1 intrinsics, millimetre units.
+    fn default() -> Self {
+        Self {
+            intrinsics: Intrinsics::KINECT_V1,
+            depth_unit_m: 0.001,
+        }
+    }
+}
+
+/// The settings of a scanner: the `[sensor]`, `[rig]` and `[clip]` tables, either in a
+/// scan's manifest or in a file of their own (which overrides a recorded or live scan's).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScannerConfig {
+    /// `[sensor]`.
+    pub sensor: SensorConfig,
+    /// `[rig]`.
+    pub rig: Rig,
+    /// `[clip]`.
+    pub clip: ClipBox,
+}
+
+impl Default for ScannerConfig {
+    /// The example of SCAN_FORMAT.md: Kinect v1, tilt 19.65°, sensor at (0, 0.30, 0.7) m,
+    /// clip box ±0.15 m wide, 3 mm to 0.40 m high.
+    fn default() -> Self {
+        Self {
+            sensor: SensorConfig::default(),
+            rig: Rig {
+                tilt_deg: 19.65,
+                sensor_position_m: Vec3::new(0.0, 0.30, 0.7),
+            },
+            clip: ClipBox {
+                min: Vec3::new(-0.15, 0.003, -0.15),
+                max: Vec3::new(0.15, 0.40, 0.15),
+            },
+        }
     }
 }
 

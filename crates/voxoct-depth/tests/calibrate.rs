@@ -1,133 +1,14 @@
-//! The calibration's building blocks on synthetic data: RANSAC plane fits with outliers,
-//! the Nelder–Mead minimiser, the platform's tilt and height from a rendered plane, and the
+//! The calibration on synthetic data (RANSAC and Nelder–Mead are tested in their modules): the platform's tilt and height from a rendered plane, and the
 //! inspection images.
 
-use proptest::prelude::*;
-use voxoct_depth::glam::Vec3;
-use voxoct_depth::{
-    AxisOptions, CalibError, CalibSnapshot, ClipBox, DepthFrame, Intrinsics, NelderMeadOptions,
-    PlatformOptions, RansacOptions, Rig, Snapshot, calibrate_axis, calibrate_platform, depth_image,
-    fit_plane_ransac, nelder_mead, views_image, write_png,
+use voxoct_depth::calib::{
+    AxisOptions, CalibError, CalibOptions, CalibSnapshot, PlatformOptions, calibrate_axis,
+    calibrate_platform,
 };
-
-/// A deterministic pseudo-random number in [0, 1).
-fn rnd(state: &mut u64) -> f32 {
-    *state ^= *state << 13;
-    *state ^= *state >> 7;
-    *state ^= *state << 17;
-    (*state >> 40) as f32 / (1u64 << 24) as f32
-}
-
-/// `n` points on the plane `normal · p = offset` with uniform noise of ±`noise`, plus
-/// `outliers` points anywhere in a 1 m cube.
-fn plane_cloud(
-    normal: Vec3,
-    offset: f32,
-    n: usize,
-    noise: f32,
-    outliers: usize,
-    seed: u64,
-) -> Vec<Vec3> {
-    let mut s = seed | 1;
-    let normal = normal.normalize();
-    let a = normal.any_orthonormal_vector();
-    let b = normal.cross(a);
-    let mut pts: Vec<Vec3> = (0..n)
-        .map(|_| {
-            let (u, v, e) = (
-                rnd(&mut s) - 0.5,
-                rnd(&mut s) - 0.5,
-                (rnd(&mut s) - 0.5) * 2.0 * noise,
-            );
-            normal * (offset + e) + a * u * 0.4 + b * v * 0.4
-        })
-        .collect();
-    pts.extend((0..outliers).map(|_| Vec3::new(rnd(&mut s), rnd(&mut s), rnd(&mut s)) - 0.5));
-    pts
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(32))]
-
-    /// RANSAC finds the plane among 40 % outliers within a fraction of the noise.
-    #[test]
-    fn ransac_finds_a_plane_among_outliers(
-        nx in -1.0f32..1.0, ny in 0.2f32..1.0, nz in -1.0f32..1.0,
-        offset in -0.3f32..0.3, seed in 1u64..1000,
-    ) {
-        let normal = Vec3::new(nx, ny, nz).normalize();
-        let pts = plane_cloud(normal, offset, 600, 0.001, 400, seed);
-        let opts = RansacOptions { threshold_m: 0.003, seed, ..RansacOptions::default() };
-        let fit = fit_plane_ransac(&pts, &opts).unwrap();
-        let n = if fit.normal.dot(normal) < 0.0 { -fit.normal } else { fit.normal };
-        let off = if fit.normal.dot(normal) < 0.0 { -fit.offset } else { fit.offset };
-        prop_assert!(n.angle_between(normal).to_degrees() < 0.5, "normal {n} vs {normal}");
-        prop_assert!((off - offset).abs() < 5e-4, "offset {off} vs {offset}");
-        prop_assert!(fit.inliers >= 590 && fit.inliers < 700, "inliers {}", fit.inliers);
-        prop_assert!(fit.rms_m < 0.001);
-    }
-}
-
-#[test]
-fn ransac_orients_by_the_hint_and_refuses_sparse_input() {
-    let pts = plane_cloud(Vec3::Y, 0.1, 300, 0.0005, 100, 5);
-    let fit = fit_plane_ransac(
-        &pts,
-        &RansacOptions {
-            normal_hint: Some(-Vec3::Y),
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    assert!(
-        (fit.normal + Vec3::Y).length() < 1e-3 && (fit.offset + 0.1).abs() < 1e-3,
-        "{fit:?}"
-    );
-    // A hint far from the only plane: nothing qualifies.
-    let err = fit_plane_ransac(
-        &pts,
-        &RansacOptions {
-            normal_hint: Some(Vec3::X),
-            ..Default::default()
-        },
-    );
-    assert!(matches!(err, Err(CalibError::NoPlane { .. })), "{err:?}");
-    let err = fit_plane_ransac(&pts[..10], &RansacOptions::default());
-    assert!(
-        matches!(err, Err(CalibError::TooFewPoints { found: 10, .. })),
-        "{err:?}"
-    );
-}
-
-#[test]
-fn nelder_mead_minimises_rosenbrock_and_a_robust_bowl() {
-    let rosen = |x: &[f64]| (1.0 - x[0]).powi(2) + 100.0 * (x[1] - x[0] * x[0]).powi(2);
-    let opts = NelderMeadOptions {
-        max_iterations: 2000,
-        f_tol: 1e-14,
-        x_tol: 1e-8,
-    };
-    let m = nelder_mead(rosen, &[-1.2, 1.0], &[0.5, 0.5], &opts);
-    assert!(
-        (m.x[0] - 1.0).abs() < 1e-3 && (m.x[1] - 1.0).abs() < 1e-3,
-        "{m:?}"
-    );
-    assert!(m.evaluations > m.iterations);
-    // A saturating (Geman–McClure) bowl in three variables with a NaN region.
-    let f = |x: &[f64]| {
-        if x[2] > 50.0 {
-            return f64::NAN;
-        }
-        let r2: f64 = x
-            .iter()
-            .zip([3.0, -2.0, 0.5])
-            .map(|(a, b)| (a - b).powi(2))
-            .sum();
-        r2 / (r2 + 4.0)
-    };
-    let m = nelder_mead(f, &[0.0; 3], &[2.0; 3], &NelderMeadOptions::default());
-    assert!(m.value < 1e-6, "{m:?}");
-}
+use voxoct_depth::glam::Vec3;
+use voxoct_depth::image::{depth_image, views_image, write_png};
+use voxoct_depth::snapshot::Snapshot;
+use voxoct_depth::{ClipBox, DepthFrame, Intrinsics, Rig, ScannerConfig, SensorConfig};
 
 /// A frame of the platform plane `y = 0` seen from `rig` (exact depths in 0.1 mm units).
 fn render_platform(rig: &Rig, intr: &Intrinsics) -> DepthFrame {
@@ -160,6 +41,14 @@ fn small_sensor() -> Intrinsics {
         cx: 79.5,
         cy: 59.5,
     }
+}
+
+/// A deterministic pseudo-random number in [0, 1).
+fn rnd(state: &mut u64) -> f32 {
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    (*state >> 40) as f32 / (1u64 << 24) as f32
 }
 
 #[test]
@@ -240,7 +129,7 @@ fn images_show_depth_and_views() {
     let path = dir.path().join("v.png");
     write_png(&path, &views).unwrap();
     assert!(std::fs::metadata(&path).unwrap().len() > 100);
-    let bad = voxoct_depth::RgbImage {
+    let bad = voxoct_depth::image::RgbImage {
         width: 3,
         height: 3,
         data: vec![0; 5],
@@ -333,16 +222,15 @@ fn axis_is_recovered_from_a_synthetic_turn() {
         tilt_deg: 21.5,
         sensor_position_m: Vec3::new(-0.005, 0.31, 0.69),
     };
-    let cal = voxoct_depth::calibrate(
-        &snaps,
-        None,
-        &intr,
-        start,
-        &clip,
-        &PlatformOptions::default(),
-        &AxisOptions::default(),
-    )
-    .unwrap();
+    let config = ScannerConfig {
+        sensor: SensorConfig {
+            intrinsics: intr,
+            depth_unit_m: 0.001,
+        },
+        rig: start,
+        clip,
+    };
+    let cal = voxoct_depth::calib::calibrate(&config, &snaps, &CalibOptions::default()).unwrap();
     let err = cal.rig.sensor_position_m - truth.sensor_position_m;
     println!(
         "synthetic: position error {err} m, tilt error {}°, residual {} → {} m",

@@ -6,11 +6,12 @@
 use std::path::Path;
 
 use proptest::prelude::*;
+use voxoct_depth::filter::FilterChain;
 use voxoct_depth::glam::{Affine3A, Vec3};
-use voxoct_depth::{
-    ClipBox, DEFAULT_MAX_EDGE_SQ, DepthFrame, FilterChain, HOLE, Intrinsics, RecordedScan, Rig,
-    ScanWriter, ScannerConfig, SensorConfig, Snapshot, triangulate_vec,
-};
+use voxoct_depth::scan::{RecordedScan, ScanWriter};
+use voxoct_depth::snapshot::{HOLE, Snapshot};
+use voxoct_depth::triangulate::{DEFAULT_MAX_EDGE_SQ, triangulate_vec};
+use voxoct_depth::{ClipBox, DepthFrame, Intrinsics, Rig, ScannerConfig, SensorConfig};
 
 type M3 = [[f64; 3]; 3];
 
@@ -224,13 +225,7 @@ proptest! {
                 prop_assert!(t.v[a].distance_squared(t.v[b]) <= DEFAULT_MAX_EDGE_SQ);
             }
         }
-        let mut bytes = Vec::new();
-        s.write_to(&mut bytes).unwrap();
-        let r = Snapshot::read_from(&bytes[..]).unwrap();
-        prop_assert_eq!(r.camera_to_object, s.camera_to_object);
-        for (p, q) in r.points.iter().zip(&s.points) {
-            prop_assert!(p == q || (p.x.is_nan() && q.x.is_nan()));
-        }
+        prop_assert!(s.points.iter().zip(&frame.data).all(|(p, &d)| (d == 0) == p.x.is_nan() && (d == 0) == p.is_nan() && (!p.is_nan() || p.x.to_bits() == HOLE.x.to_bits())));
         let _ = (HOLE, Affine3A::IDENTITY);
     }
 }
@@ -325,15 +320,17 @@ fn percentile(sorted: &[f32], p: f64) -> f32 {
 }
 
 #[test]
+#[ignore = "needs ../shared/data"]
 fn bunny_scan_lands_on_the_ground_truth() {
     use parry3d::query::PointQuery;
     let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data");
     let scan_dir = Path::new(root).join("bunny-scan");
     let gt = Path::new(root).join("bunny-scan.gt.ply");
-    if !scan_dir.join("scan.toml").exists() || !gt.exists() {
-        println!("note: {} absent; bunny test skipped", scan_dir.display());
-        return;
-    }
+    assert!(
+        scan_dir.join("scan.toml").exists() && gt.exists(),
+        "{} or its ground truth is absent",
+        scan_dir.display()
+    );
     let (verts, faces) = read_ply(&gt).unwrap();
     let mesh = parry3d::shape::TriMesh::new(verts, faces).unwrap();
     let scan = RecordedScan::open(&scan_dir).unwrap();

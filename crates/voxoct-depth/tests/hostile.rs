@@ -5,10 +5,12 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use voxoct_depth::glam::Vec3;
-use voxoct_depth::{
-    DepthError, DepthFrame, MANIFEST_FILE, RecordedScan, RgbImage, Rig, ScanManifest,
-    ScannerConfig, SnapshotEntry, read_png_frame_sized, set_rig_in_manifest_text, write_png,
+use voxoct_depth::image::{RgbImage, write_png};
+use voxoct_depth::scan::{
+    MANIFEST_FILE, RecordedScan, ScanError, ScanManifest, SnapshotEntry, read_png_frame_sized,
+    set_rig_in_manifest_text,
 };
+use voxoct_depth::{DepthFrame, Rig, ScannerConfig};
 
 /// A one-snapshot scan of 8x6 frames in `dir`.
 fn write_scan(dir: &Path) -> ScanManifest {
@@ -88,7 +90,7 @@ fn d08_the_png_header_is_checked_before_decoding() {
     }
     fs::write(&p, &buf).unwrap();
     let e = read_png_frame_sized(&p, 0.001, Some((640, 480))).unwrap_err();
-    assert!(matches!(e, DepthError::BadFrameFile { .. }), "{e}");
+    assert!(matches!(e, ScanError::BadFrameFile { .. }), "{e}");
     assert!(e.to_string().contains("100000x100000"), "{e}");
     let e = read_png_frame_sized(&p, 0.001, None).unwrap_err();
     assert!(e.to_string().contains("larger than"), "{e}");

@@ -4,10 +4,10 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use voxoct_depth::glam::Vec3;
-use voxoct_depth::{
-    ClipBox, DepthError, DepthFrame, Intrinsics, MANIFEST_FILE, RecordedScan, Rig, ScanManifest,
-    ScanWriter, ScannerConfig, SensorConfig, SnapshotEntry,
+use voxoct_depth::scan::{
+    MANIFEST_FILE, RecordedScan, ScanError, ScanManifest, ScanWriter, SnapshotEntry,
 };
+use voxoct_depth::{ClipBox, DepthFrame, FrameError, Intrinsics, Rig, ScannerConfig, SensorConfig};
 
 fn config(w: u32, h: u32) -> ScannerConfig {
     ScannerConfig {
@@ -101,18 +101,18 @@ fn scan_writer_writes_snapshot_by_snapshot() {
     // Bad snapshots are refused and leave the scan as it was.
     assert!(matches!(
         w.add_snapshot(f32::NAN, &b),
-        Err(DepthError::InvalidParameter {
+        Err(ScanError::Frame(FrameError::InvalidParameter {
             name: "angle_deg",
             ..
-        })
+        }))
     ));
     assert!(matches!(
         w.add_snapshot(90.0, &[]),
-        Err(DepthError::NoFrames)
+        Err(ScanError::Frame(FrameError::NoFrames))
     ));
     assert!(matches!(
         w.add_snapshot(90.0, &[frame(4, 4, 0)]),
-        Err(DepthError::ScanMismatch { .. })
+        Err(ScanError::ScanMismatch { .. })
     ));
     let m = w.finish().unwrap();
     assert_eq!(m.snapshots.len(), 2);
@@ -125,10 +125,7 @@ fn scan_writer_writes_snapshot_by_snapshot() {
     assert_eq!(scan.frames, vec![a, b]);
 
     let empty = ScanWriter::create(dir.path().join("empty"), config(5, 4)).unwrap();
-    assert!(matches!(
-        empty.finish(),
-        Err(DepthError::NoSnapshots { .. })
-    ));
+    assert!(matches!(empty.finish(), Err(ScanError::NoSnapshots { .. })));
 }
 
 #[test]
@@ -138,13 +135,13 @@ fn write_refuses_mismatched_input() {
     let out = dir.path().join("out");
     assert!(matches!(
         RecordedScan::write(&out, &m, &frames[..2]),
-        Err(DepthError::ScanMismatch { .. })
+        Err(ScanError::ScanMismatch { .. })
     ));
     let mut short = frames.clone();
     short[1].pop();
     assert!(matches!(
         RecordedScan::write(&out, &m, &short),
-        Err(DepthError::ScanMismatch { .. })
+        Err(ScanError::ScanMismatch { .. })
     ));
     let mut units = frames.clone();
     units[0][0].unit_m = 0.0001;
@@ -174,22 +171,22 @@ fn scanner_config_file_round_trips_and_overrides() {
     assert!(scan.frames.iter().flatten().all(|f| f.unit_m == 0.0005));
     assert!(matches!(
         scan.apply_config(&config(9, 6)),
-        Err(DepthError::FrameSizeMismatch { .. })
+        Err(ScanError::Frame(FrameError::FrameSizeMismatch { .. }))
     ));
 
     // Missing table, named.
     fs::write(&p, "[sensor]\nwidth = 1\n").unwrap();
     let e = ScannerConfig::from_file(&p).unwrap_err();
     assert!(e.to_string().contains("scanner.toml"), "{e}");
-    assert!(matches!(e, DepthError::MissingKey { ref key, .. } if key == "sensor.height"));
+    assert!(matches!(e, ScanError::MissingKey { ref key, .. } if key == "sensor.height"));
     assert!(matches!(
         ScannerConfig::from_file(dir.path().join("nope.toml")),
-        Err(DepthError::Io { .. })
+        Err(ScanError::Io { .. })
     ));
 }
 
 /// Writes a valid scan, applies `edit` to its manifest text, and opens it.
-fn open_edited(edit: impl FnOnce(String) -> String) -> (tempfile::TempDir, DepthError) {
+fn open_edited(edit: impl FnOnce(String) -> String) -> (tempfile::TempDir, ScanError) {
     let dir = tempfile::tempdir().unwrap();
     write_scan(dir.path());
     let p = dir.path().join(MANIFEST_FILE);
@@ -208,11 +205,11 @@ fn replace(from: &'static str, to: &'static str) -> impl FnOnce(String) -> Strin
     }
 }
 
-fn key_of(e: &DepthError) -> &str {
+fn key_of(e: &ScanError) -> &str {
     match e {
-        DepthError::MissingKey { key, .. }
-        | DepthError::WrongType { key, .. }
-        | DepthError::InvalidValue { key, .. } => key,
+        ScanError::MissingKey { key, .. }
+        | ScanError::WrongType { key, .. }
+        | ScanError::InvalidValue { key, .. } => key,
         e => panic!("not a key error: {e:?}"),
     }
 }
@@ -228,7 +225,7 @@ fn missing_keys_are_named() {
         ("angle_deg = 120.0\n", "snapshot[1].angle_deg"),
     ] {
         let (_d, e) = open_edited(replace(from, ""));
-        assert!(matches!(e, DepthError::MissingKey { .. }), "{e:?}");
+        assert!(matches!(e, ScanError::MissingKey { .. }), "{e:?}");
         assert_eq!(key_of(&e), key);
         let msg = e.to_string();
         assert!(msg.contains(key) && msg.contains(MANIFEST_FILE), "{msg}");
@@ -266,7 +263,7 @@ fn mistyped_keys_are_named() {
     ] {
         let (_d, e) = open_edited(replace(from, to));
         assert!(
-            matches!(e, DepthError::WrongType { .. }),
+            matches!(e, ScanError::WrongType { .. }),
             "{from} -> {to}: {e:?}"
         );
         assert_eq!(key_of(&e), key, "{e}");
@@ -274,7 +271,7 @@ fn mistyped_keys_are_named() {
     }
     let (_d, e) = open_edited(|t| t.replacen("[sensor]", "sensor = 3\n[sensorx]", 1));
     assert!(
-        matches!(e, DepthError::WrongType { ref key, .. } if key == "sensor"),
+        matches!(e, ScanError::WrongType { ref key, .. } if key == "sensor"),
         "{e:?}"
     );
 }
@@ -318,7 +315,7 @@ fn out_of_range_values_are_refused() {
     ] {
         let (_d, e) = open_edited(replace(from, to));
         assert!(
-            matches!(e, DepthError::InvalidValue { .. }),
+            matches!(e, ScanError::InvalidValue { .. }),
             "{from} -> {to}: {e:?}"
         );
         assert_eq!(key_of(&e), key, "{e}");
@@ -334,11 +331,11 @@ fn out_of_range_values_are_refused() {
 #[test]
 fn format_version_and_snapshot_list_are_checked() {
     let (_d, e) = open_edited(replace("\"voxoct-scan\"", "\"tum-rgbd\""));
-    assert!(matches!(e, DepthError::WrongFormat { ref found, .. } if found == "tum-rgbd"));
+    assert!(matches!(e, ScanError::WrongFormat { ref found, .. } if found == "tum-rgbd"));
     let (_d, e) = open_edited(replace("version = 1", "version = 2"));
     assert!(matches!(
         e,
-        DepthError::UnsupportedVersion {
+        ScanError::UnsupportedVersion {
             found: 2,
             supported: 1,
             ..
@@ -348,11 +345,11 @@ fn format_version_and_snapshot_list_are_checked() {
         let i = t.find("[[snapshot]]").unwrap();
         format!("{}snapshot = []\n", &t[..i])
     });
-    assert!(matches!(e, DepthError::NoSnapshots { .. }), "{e:?}");
+    assert!(matches!(e, ScanError::NoSnapshots { .. }), "{e:?}");
     let (_d, e) = open_edited(|t| t[..t.find("[[snapshot]]").unwrap()].to_owned());
-    assert!(matches!(e, DepthError::NoSnapshots { .. }), "{e:?}");
+    assert!(matches!(e, ScanError::NoSnapshots { .. }), "{e:?}");
     let (_d, e) = open_edited(replace("[sensor]", "[sensor"));
-    assert!(matches!(e, DepthError::Toml { .. }), "{e:?}");
+    assert!(matches!(e, ScanError::Toml { .. }), "{e:?}");
     assert!(e.to_string().contains(MANIFEST_FILE));
 }
 
@@ -377,7 +374,7 @@ fn unknown_keys_are_ignored() {
 
 #[test]
 fn bad_frame_files_are_named() {
-    fn with_frame(bytes: impl FnOnce(&Path)) -> DepthError {
+    fn with_frame(bytes: impl FnOnce(&Path)) -> ScanError {
         let dir = tempfile::tempdir().unwrap();
         write_scan(dir.path());
         bytes(&dir.path().join("frames/s001_f00.png"));
@@ -408,34 +405,34 @@ fn bad_frame_files_are_named() {
     }
 
     let e = with_frame(|p| fs::remove_file(p).unwrap());
-    assert!(matches!(e, DepthError::Io { .. }), "{e:?}");
+    assert!(matches!(e, ScanError::Io { .. }), "{e:?}");
     let e = with_frame(|p| png(p, 8, 5, png::ColorType::Grayscale, png::BitDepth::Sixteen));
     assert!(
-        matches!(e, DepthError::BadFrameFile { ref reason, .. } if reason.contains("8x5")),
+        matches!(e, ScanError::BadFrameFile { ref reason, .. } if reason.contains("8x5")),
         "{e:?}"
     );
     let e = with_frame(|p| png(p, 8, 6, png::ColorType::Grayscale, png::BitDepth::Eight));
     assert!(
-        matches!(e, DepthError::BadFrameFile { ref reason, .. } if reason.contains("8-bit")),
+        matches!(e, ScanError::BadFrameFile { ref reason, .. } if reason.contains("8-bit")),
         "{e:?}"
     );
     let e = with_frame(|p| png(p, 8, 6, png::ColorType::Rgb, png::BitDepth::Sixteen));
     assert!(
-        matches!(e, DepthError::BadFrameFile { ref reason, .. } if reason.contains("Rgb")),
+        matches!(e, ScanError::BadFrameFile { ref reason, .. } if reason.contains("Rgb")),
         "{e:?}"
     );
     let e = with_frame(|p| fs::write(p, b"P5 8 6 65535\n").unwrap());
-    assert!(matches!(e, DepthError::Png { .. }), "{e:?}");
+    assert!(matches!(e, ScanError::Png { .. }), "{e:?}");
     let e = with_frame(|p| {
         let b = fs::read(p).unwrap();
         fs::write(p, &b[..b.len() / 2]).unwrap();
     });
-    assert!(matches!(e, DepthError::Png { .. }), "{e:?}");
+    assert!(matches!(e, ScanError::Png { .. }), "{e:?}");
 
     let dir = tempfile::tempdir().unwrap();
     assert!(matches!(
         RecordedScan::open(dir.path()),
-        Err(DepthError::Io { ref path, .. }) if path.ends_with(MANIFEST_FILE)
+        Err(ScanError::Io { ref path, .. }) if path.ends_with(MANIFEST_FILE)
     ));
 }
 

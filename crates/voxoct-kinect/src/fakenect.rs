@@ -548,6 +548,7 @@ impl FakenectWriter {
 }
 
 /// Writes `bytes` to `path` through a temporary file beside it.
+// TODO(issue15): use voxoct-stl's atomic writer (it also syncs the file before the rename).
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SourceError> {
     let tmp = path.with_extension("partial");
     std::fs::write(&tmp, bytes)

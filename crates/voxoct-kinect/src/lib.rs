@@ -6,37 +6,15 @@
 //! [`DepthFrame`]s in millimetres (`unit_m = 0.001`, 0 = no reading), depth along the optical
 //! axis, in the OpenCV camera frame of SCAN_FORMAT.md.
 //!
-//! # The simulated Kinect
-//! [`SimulatedKinect`] ray-casts a triangle mesh standing on a turntable (parry3d `TriMesh`
-//! and its BVH). The object turns by `+angle` about +Y with
-//! [`SimulatedKinect::set_turntable_angle_deg`], so frames back-projected through
-//! [`Rig::camera_to_object`]`(angle)` land on the unrotated model. The scene also holds the
-//! turntable disk (top face at y = 0) and the floor, as a real rig sees them. The sensor model
-//! follows Khoshelham & Elberink (2012): disparity `d = f·b / z` with `f·b = 580 px × 0.075 m`,
-//! Gaussian disparity noise of 1/8 px quantised to 1/8 px, no reading outside 0.4–4.0 m, the
-//! IR projector's shadow (a second ray from the projector, 7.5 cm beside the camera),
-//! drop-outs at grazing incidence and flicker at depth edges; seeded ([`SimConfig::seed`]),
-//! with an exact, noise-free mode ([`SimConfig::exact`]). Built-in closed models
-//! ([`Model::builtin`]: figurine, mug, sphere, torus, box, cylinder) need no file; any STL or
-//! OBJ loads with [`load_model`] and [`Model::place_on_platform`].
+//! - [`SimulatedKinect`]: ray-casts a mesh on a turntable with the Kinect v1 noise model
+//!   of `voxoct_depth::noise` ([`NoiseModel`], [`SimConfig`]); built-in models
+//!   ([`Model::builtin`]) or any STL/OBJ/PLY/3MF ([`load_model`]).
+//! - [`FakenectSource`] replays a libfreenect `fakenect` recording; [`FakenectWriter`]
+//!   writes one.
+//! - `KinectSource` (feature `freenect`) reads a live Kinect v1 through libfreenect.
 //!
-//! Each pixel's rays are cast once per turntable angle and cached; each frame only draws
-//! noise. Measured on an idle 2-core machine (test profile, 640×480, figurine): about 75 ms
-//! for the first frame at a new angle and about 8 ms for each further frame, so a scan of
-//! 8 snapshots × 10 frames renders in about 1.2 s (the `sim_timing` example measures it).
-//!
-//! # Fakenect replay
-//! [`FakenectSource`] serves the depth frames of a directory recorded by libfreenect's
-//! `record` tool, converting raw 11-bit disparities with [`raw_disparity_to_m`].
-//!
-//! # Live Kinect v1
-//! With the `freenect` feature, `KinectSource::open(index)` reads a device through
-//! `libfreenect_sync` in millimetre mode, and `KinectSource::open_with` in any
-//! [`KinectDepth`] mode — raw disparities are converted with the same
-//! [`raw_disparity_to_m`] as the fakenect replay; without a device it returns
-//! [`SourceError::NoKinect`] at once, with libfreenect's own messages quietened. Under
-//! libfreenect's fakenect library it replays a recording such as [`FakenectWriter`] writes:
-//! a live scan rehearsed without the hardware.
+//! ARCHITECTURE.md (section voxoct-kinect) explains the design; timings are in
+//! BENCHMARKS.md.
 //!
 //! # Example
 //! An exact frame of a 6 cm sphere seen head-on from 0.7 m: the pixel on the optical axis

@@ -9,6 +9,7 @@ use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
+use voxoct_depth::noise::{KINECT_V1_FOCAL_BASELINE_PX_M, KINECT_V1_SIGMA_COEFF};
 use voxoct_depth::{DepthFrame, Intrinsics, Rig};
 
 use crate::{DepthSource, Model, SourceError};
@@ -18,14 +19,16 @@ use crate::{DepthSource, Model, SourceError};
 ///
 /// The sensor measures a disparity `d = f·b / z` (pixels) between the projected speckle
 /// pattern and its reference; the disparity carries Gaussian noise and is quantised to
-/// 1/8 px, so the depth error grows as `σ_z = z² · σ_d / (f·b)` (≈ 1.4 mm at 0.7 m,
-/// ≈ 4.6 mm at 1.3 m).
+/// 1/8 px, so the depth error grows as `σ_z = z² · σ_d / (f·b)`. The default `σ_d` is the
+/// one of [`voxoct_depth::noise`] (the model the filters and the carving margin use):
+/// σ_z ≈ 0.7 mm at 0.7 m, 2.4 mm at 1.3 m, before quantisation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoiseModel {
     /// `f · b`: focal length (px) times the projector–camera baseline (m). Kinect v1:
     /// 580 px × 0.075 m = 43.5 px·m.
     pub focal_baseline_px_m: f32,
-    /// Standard deviation of the disparity noise, pixels (≈ 1/8 px; 0 = none).
+    /// Standard deviation of the disparity noise, pixels (Kinect v1: ≈ 1/16 px,
+    /// [`voxoct_depth::noise::kinect_v1_disparity_sigma_px`]; 0 = none).
     pub disparity_sigma_px: f32,
     /// Disparity quantisation step, pixels (1/8 px; 0 = none).
     pub disparity_step_px: f32,
@@ -60,10 +63,11 @@ impl Default for NoiseModel {
 }
 
 impl NoiseModel {
-    /// The Kinect v1 figures used throughout the project (and in its reference bunny scan).
+    /// The Kinect v1 figures used throughout the project. (The dev scans of `../shared/data`
+    /// were rendered with twice this disparity noise, `disparity_sigma_px: 0.125`.)
     pub const KINECT_V1: Self = Self {
-        focal_baseline_px_m: 580.0 * 0.075,
-        disparity_sigma_px: 0.125,
+        focal_baseline_px_m: KINECT_V1_FOCAL_BASELINE_PX_M,
+        disparity_sigma_px: KINECT_V1_SIGMA_COEFF * KINECT_V1_FOCAL_BASELINE_PX_M,
         disparity_step_px: 0.125,
         min_range_m: 0.4,
         max_range_m: 4.0,

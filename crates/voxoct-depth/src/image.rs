@@ -11,15 +11,15 @@
 //!   (left) and from the side (right), one colour per snapshot. A wrong rig shows at once as
 //!   doubled contours.
 
-use std::io::BufWriter;
+#[cfg(feature = "png")]
 use std::path::Path;
 
 use glam::Vec3;
 
-use crate::error::DepthError;
+use crate::DepthFrame;
+use crate::error::FrameError;
 use crate::filter::{check_frame, check_frame_size, check_frames};
-use crate::snapshot::{Snapshot, write_atomic};
-use crate::types::DepthFrame;
+use crate::snapshot::Snapshot;
 
 /// An 8-bit RGB image, row-major from the top-left pixel, 3 bytes per pixel.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -61,57 +61,72 @@ impl RgbImage {
     }
 }
 
+/// Why [`write_png`] failed.
+#[cfg(feature = "png")]
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ImageError {
+    /// Writing the file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The image's data does not match its size, or the image is empty.
+    #[error("RGB image: {reason}")]
+    BadImage {
+        /// What is wrong.
+        reason: String,
+    },
+}
+
 /// Writes `img` as an 8-bit RGB PNG, atomically (a temporary file renamed over `path`).
-pub fn write_png(path: impl AsRef<Path>, img: &RgbImage) -> Result<(), DepthError> {
+/// Feature `png` (on by default).
+#[cfg(feature = "png")]
+pub fn write_png(path: impl AsRef<Path>, img: &RgbImage) -> Result<(), ImageError> {
     let path = path.as_ref();
-    check_image(img)?;
-    write_atomic(path, |f| {
-        encode_png(BufWriter::new(f), img).map_err(|message| DepthError::Png {
-            path: path.to_owned(),
-            message,
-        })
+    let mut bytes = Vec::new();
+    write_png_to(&mut bytes, img).map_err(|e| ImageError::BadImage {
+        reason: e.to_string(),
+    })?;
+    crate::atomic::write_atomic(path, &bytes).map_err(|source| ImageError::Io {
+        path: path.to_owned(),
+        source,
     })
 }
 
 /// Writes `img` as an 8-bit RGB PNG to `w` (a file, standard output, memory); the caller
-/// names the destination in its error.
+/// names the destination in its error. Feature `png` (on by default).
 ///
 /// # Errors
 /// An invalid image or a failing writer, as [`std::io::Error`].
+#[cfg(feature = "png")]
 pub fn write_png_to<W: std::io::Write>(w: W, img: &RgbImage) -> std::io::Result<()> {
-    check_image(img).map_err(std::io::Error::other)?;
-    encode_png(w, img).map_err(std::io::Error::other)
-}
-
-fn check_image(img: &RgbImage) -> Result<(), DepthError> {
     let expected = img.width as usize * img.height as usize * 3;
     if img.data.len() != expected || img.width == 0 || img.height == 0 {
-        return Err(DepthError::InvalidParameter {
-            name: "img",
-            reason: format!(
-                "{} bytes for a {}x{} RGB image (expected {expected}, non-empty)",
-                img.data.len(),
-                img.width,
-                img.height
-            ),
-        });
+        return Err(std::io::Error::other(format!(
+            "{} bytes for a {}x{} RGB image (expected {expected}, non-empty)",
+            img.data.len(),
+            img.width,
+            img.height
+        )));
     }
-    Ok(())
-}
-
-fn encode_png<W: std::io::Write>(w: W, img: &RgbImage) -> Result<(), String> {
-    let mut enc = png::Encoder::new(w, img.width, img.height);
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(w), img.width, img.height);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
-    let mut w = enc.write_header().map_err(|e| e.to_string())?;
-    w.write_image_data(&img.data).map_err(|e| e.to_string())?;
-    w.finish().map_err(|e| e.to_string())
+    let mut w = enc.write_header().map_err(std::io::Error::other)?;
+    w.write_image_data(&img.data)
+        .map_err(std::io::Error::other)?;
+    w.finish().map_err(std::io::Error::other)
 }
 
 /// For each pixel, how many of `frames` have no reading there.
 ///
 /// Errors when a frame is malformed or the frames differ in size or unit.
-pub fn invalid_counts(frames: &[DepthFrame]) -> Result<Vec<u16>, DepthError> {
+pub fn invalid_counts(frames: &[DepthFrame]) -> Result<Vec<u16>, FrameError> {
     check_frames(frames)?;
     let mut counts = vec![0u16; frames[0].len()];
     for f in frames {
@@ -149,7 +164,7 @@ fn grey(z: f32, near: f32, far: f32) -> u8 {
 /// grey levels 255 to 48, linear in inverse depth), no reading is black.
 ///
 /// Errors when the frame's data does not match its size.
-pub fn depth_image(frame: &DepthFrame) -> Result<RgbImage, DepthError> {
+pub fn depth_image(frame: &DepthFrame) -> Result<RgbImage, FrameError> {
     check_frame(0, frame)?;
     let mut img = RgbImage::new(frame.width, frame.height);
     if let Some((near, far)) = depth_range(frame) {
@@ -168,7 +183,9 @@ pub fn depth_image(frame: &DepthFrame) -> Result<RgbImage, DepthError> {
 /// from dark red (one frame missed it) to bright red (all of them did).
 ///
 /// ```
-/// use voxoct_depth::{DepthFrame, FilterChain, snapshot_image};
+/// use voxoct_depth::DepthFrame;
+/// use voxoct_depth::filter::FilterChain;
+/// use voxoct_depth::image::snapshot_image;
 /// let mut a = DepthFrame::empty(2, 1, 0.001);
 /// a.data = vec![500, 600];
 /// let mut b = a.clone();
@@ -177,12 +194,12 @@ pub fn depth_image(frame: &DepthFrame) -> Result<RgbImage, DepthError> {
 /// assert_eq!(img.get(0, 0), Some([255, 255, 255])); // the nearest reading
 /// let [r, g, _] = img.get(1, 0).unwrap();
 /// assert!(r > 100 && g == 0); // missed by one frame of two
-/// # Ok::<(), voxoct_depth::DepthError>(())
+/// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn snapshot_image(
     frames: &[DepthFrame],
     filtered: &DepthFrame,
-) -> Result<RgbImage, DepthError> {
+) -> Result<RgbImage, FrameError> {
     let counts = invalid_counts(frames)?;
     check_frame_size(0, filtered, frames[0].width, frames[0].height)?;
     let mut img = depth_image(filtered)?;
@@ -223,7 +240,7 @@ pub fn difference_image(
     a: &DepthFrame,
     b: &DepthFrame,
     scale_m: Option<f32>,
-) -> Result<(RgbImage, DiffStats), DepthError> {
+) -> Result<(RgbImage, DiffStats), FrameError> {
     check_frame(0, a)?;
     check_frame_size(1, b, a.width, a.height)?;
     let diffs: Vec<Option<f32>> = a
@@ -245,7 +262,7 @@ pub fn difference_image(
     let scale = match scale_m {
         Some(s) if s.is_finite() && s > 0.0 => s,
         Some(s) => {
-            return Err(DepthError::InvalidParameter {
+            return Err(FrameError::InvalidParameter {
                 name: "scale_m",
                 reason: format!("{s} is not a positive number"),
             });
