@@ -26,6 +26,51 @@ fn pack(c: UVec3) -> u64 {
     u64::from(c.x) | (u64::from(c.y) << 21) | (u64::from(c.z) << 42)
 }
 
+/// The grid and the options, checked before any work: [`MeshError::InvalidArgument`]
+/// names the first bad one.
+fn check_arguments(grid: &GridSpec, opts: &MeshOptions) -> Result<(), MeshError> {
+    let bad = |name, value: f32, reason| {
+        Err(MeshError::InvalidArgument {
+            name,
+            value: f64::from(value),
+            reason,
+        })
+    };
+    for (name, value) in [
+        ("grid.origin.x", grid.origin.x),
+        ("grid.origin.y", grid.origin.y),
+        ("grid.origin.z", grid.origin.z),
+    ] {
+        if !value.is_finite() {
+            return bad(name, value, "must be finite");
+        }
+    }
+    if !(grid.cell.is_finite() && grid.cell > 0.0) {
+        return bad("grid.cell", grid.cell, "must be finite and positive");
+    }
+    if grid.resolution == 0 || grid.resolution > 1 << 20 {
+        return Err(MeshError::InvalidArgument {
+            name: "grid.resolution",
+            value: f64::from(grid.resolution),
+            reason: "must be in 1..=2^20",
+        });
+    }
+    if let Some(t) = opts.smoothing {
+        if !(t.lambda > 0.0 && t.lambda < 1.0) {
+            return bad("smoothing.lambda", t.lambda, "must be in (0, 1)");
+        }
+        if !(t.mu < -t.lambda && t.mu > -1.0) {
+            return bad("smoothing.mu", t.mu, "must be in (-1, -lambda)");
+        }
+    }
+    if let Floor::Y(y) = opts.floor
+        && !y.is_finite()
+    {
+        return bad("floor", y, "Floor::Y must be finite");
+    }
+    Ok(())
+}
+
 /// Validates the grid and the cells; returns the marked cells as `(coord, value)` with the
 /// value in cells (mean signed distance / cell edge, 0 when not finite), and the inside rule.
 pub(crate) fn prepare(
@@ -34,33 +79,7 @@ pub(crate) fn prepare(
     opts: &MeshOptions,
     out: &mut Vec<(UVec3, f32)>,
 ) -> Result<Inside, MeshError> {
-    if !grid.origin.is_finite() {
-        return Err(MeshError::InvalidGrid("origin is not finite"));
-    }
-    if !(grid.cell.is_finite() && grid.cell > 0.0) {
-        return Err(MeshError::InvalidGrid(
-            "cell edge is not finite and positive",
-        ));
-    }
-    if grid.resolution == 0 || grid.resolution > 1 << 20 {
-        return Err(MeshError::InvalidGrid("resolution must be in 1..=2^20"));
-    }
-    if let Some(t) = opts.smoothing
-        && !(t.lambda > 0.0 && t.lambda < 1.0 && t.mu < -t.lambda && t.mu > -1.0)
-    {
-        return Err(MeshError::InvalidOption {
-            field: "smoothing",
-            reason: "need 0 < lambda < 1 and -1 < mu < -lambda",
-        });
-    }
-    if let Floor::Y(y) = opts.floor
-        && !y.is_finite()
-    {
-        return Err(MeshError::InvalidOption {
-            field: "floor",
-            reason: "Floor::Y must be finite",
-        });
-    }
+    check_arguments(grid, opts)?;
     let min_hits = opts.min_hits.max(1);
     let inv = 1.0 / grid.cell;
     out.clear();

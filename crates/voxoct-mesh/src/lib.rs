@@ -115,7 +115,7 @@ pub use simplify::{
 /// `hits == 0` are unmarked.
 ///
 /// # Errors
-/// [`MeshError::CellOutsideGrid`], [`MeshError::InvalidGrid`], [`MeshError::InvalidOption`],
+/// [`MeshError::CellOutsideGrid`], [`MeshError::InvalidArgument`],
 /// [`MeshError::FillTooLarge`].
 pub fn mesh_cells(cells: &[Cell], grid: &GridSpec, opts: &MeshOptions) -> Result<Mesh, MeshError> {
     let mut mesh = Mesh::default();

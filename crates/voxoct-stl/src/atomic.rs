@@ -273,9 +273,18 @@ mod tests {
     fn the_callers_error_type_passes_through() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("a.stl");
-        let err =
-            write_atomic(&path, |_| Err(crate::StlError::InvalidScale { scale: 0.0 })).unwrap_err();
-        assert!(matches!(err, crate::StlError::InvalidScale { .. }));
+        let err = write_atomic(&path, |_| {
+            Err(crate::StlError::InvalidArgument {
+                name: "scale",
+                value: 0.0,
+                reason: "test",
+            })
+        })
+        .unwrap_err();
+        assert!(matches!(
+            err,
+            crate::StlError::InvalidArgument { name: "scale", .. }
+        ));
         assert!(entries(dir.path()).is_empty());
     }
 

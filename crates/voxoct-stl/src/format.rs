@@ -145,7 +145,7 @@ impl Default for WriteOptions {
 /// the writers encode in chunks).
 ///
 /// # Errors
-/// [`StlError::InvalidScale`], [`StlError::IndexOutOfRange`],
+/// [`StlError::InvalidArgument`], [`StlError::IndexOutOfRange`],
 /// [`StlError::VertexDataLength`], format limits ([`StlError::TooManyTriangles`],
 /// [`StlError::No3mfUnit`]), or the writer's [`StlError::Io`] / [`StlError::Zip`].
 pub fn write_mesh<W: Write>(

@@ -34,7 +34,11 @@ pub(crate) fn check_input(
     scale: f32,
 ) -> Result<(), StlError> {
     if !(scale.is_finite() && scale > 0.0) {
-        return Err(StlError::InvalidScale { scale });
+        return Err(StlError::InvalidArgument {
+            name: "scale",
+            value: f64::from(scale),
+            reason: "must be finite and positive (file units per metre: 1000 for millimetres)",
+        });
     }
     for (t, tri) in triangles.iter().enumerate() {
         for &index in tri {
@@ -68,7 +72,7 @@ fn facet(vertices: &[Vec3], tri: &[u32; 3], scale: f32) -> (Vec3, [Vec3; 3]) {
 /// Facet normals are computed from the winding (counter-clockwise seen from outside).
 ///
 /// # Errors
-/// [`StlError::InvalidScale`], [`StlError::IndexOutOfRange`],
+/// [`StlError::InvalidArgument`], [`StlError::IndexOutOfRange`],
 /// [`StlError::TooManyTriangles`], or the writer's [`StlError::Io`].
 pub fn write_binary<W: Write>(
     w: W,
@@ -123,7 +127,7 @@ pub(crate) fn encode_binary<W: Write>(
 /// gives the same `f32` bits.
 ///
 /// # Errors
-/// [`StlError::InvalidScale`], [`StlError::IndexOutOfRange`], or the writer's [`StlError::Io`].
+/// [`StlError::InvalidArgument`], [`StlError::IndexOutOfRange`], or the writer's [`StlError::Io`].
 pub fn write_ascii<W: Write>(
     w: W,
     vertices: &[Vec3],

@@ -154,7 +154,7 @@ fn writer_rejects_bad_index_and_scale() {
     for s in [0.0, -1.0, f32::NAN, f32::INFINITY] {
         assert!(matches!(
             write_ascii(&mut b, &v, &[[0, 1, 2]], s),
-            Err(StlError::InvalidScale { .. })
+            Err(StlError::InvalidArgument { name: "scale", .. })
         ));
     }
 }

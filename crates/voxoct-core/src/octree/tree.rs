@@ -15,12 +15,13 @@ pub const MAX_DEPTH: u32 = 21;
 
 /// A sparse octree over a cubic root whose leaves are marked by inserted triangles.
 ///
-/// See the [crate documentation](crate) for the semantics and the storage layout.
+/// See the [crate documentation](crate) for the semantics, and ARCHITECTURE.md for the
+/// storage layout.
 #[derive(Debug, Clone)]
 pub struct Octree {
     min: Vec3,
-    edge: Real,
-    leaf_size: Real,
+    root_m: Real,
+    leaf_m: Real,
     depth: u32,
     leaf_edge: Real,
     pub(super) layout: Layout,
@@ -31,54 +32,53 @@ pub struct Octree {
 }
 
 impl Octree {
-    /// An empty octree whose root is the cube `min ..= min + edge`, subdivided down to
-    /// the first depth whose node edge is `<= leaf_size`.
+    /// An empty octree whose root is the cube `min ..= min + root_m` (metres), subdivided
+    /// down to the first depth whose node edge is `<= leaf_m`: the names and units of the
+    /// facade's `Params { root_m, leaf_m }`.
     ///
     /// # Errors
     ///
-    /// [`OctreeError::NonFinite`] / [`OctreeError::NonPositive`] for bad values,
+    /// [`OctreeError::InvalidArgument`] for a non-finite or non-positive value (named
+    /// `"min.x"`, `"root_m"`, `"leaf_m"`, …),
     /// [`OctreeError::LeafLargerThanRoot`], [`OctreeError::TooDeep`] beyond
     /// [`MAX_DEPTH`], and [`OctreeError::LeafBelowPrecision`] when the leaves are too
     /// small for `f32` coordinates at the root's position.
-    pub fn new(min: Vec3, edge: Real, leaf_size: Real) -> Result<Self, OctreeError> {
+    pub fn new(min: Vec3, root_m: Real, leaf_m: Real) -> Result<Self, OctreeError> {
         for (name, value) in [
             ("min.x", min.x),
             ("min.y", min.y),
             ("min.z", min.z),
-            ("edge", edge),
-            ("leaf_size", leaf_size),
+            ("root_m", root_m),
+            ("leaf_m", leaf_m),
         ] {
             if !value.is_finite() {
-                return Err(OctreeError::NonFinite { name, value });
+                return Err(OctreeError::not_finite(name, value));
             }
         }
-        for (name, value) in [("edge", edge), ("leaf_size", leaf_size)] {
+        for (name, value) in [("root_m", root_m), ("leaf_m", leaf_m)] {
             if value <= 0.0 {
-                return Err(OctreeError::NonPositive { name, value });
+                return Err(OctreeError::not_positive(name, value));
             }
         }
-        if leaf_size > edge {
-            return Err(OctreeError::LeafLargerThanRoot { leaf_size, edge });
+        if leaf_m > root_m {
+            return Err(OctreeError::LeafLargerThanRoot { leaf_m, root_m });
         }
-        let max = min + Vec3::splat(edge);
+        let max = min + Vec3::splat(root_m);
         if let Some(value) = max.to_array().into_iter().find(|v| !v.is_finite()) {
-            return Err(OctreeError::NonFinite {
-                name: "min + edge",
-                value,
-            });
+            return Err(OctreeError::not_finite("min + root_m", value));
         }
         let mut depth = 0;
-        while depth <= MAX_DEPTH && edge_at(edge, depth) > leaf_size {
+        while depth <= MAX_DEPTH && edge_at(root_m, depth) > leaf_m {
             depth += 1;
         }
         if depth > MAX_DEPTH {
-            let needed = (f64::from(edge) / f64::from(leaf_size)).log2().ceil() as u32;
+            let needed = (f64::from(root_m) / f64::from(leaf_m)).log2().ceil() as u32;
             return Err(OctreeError::TooDeep {
                 depth: needed.max(MAX_DEPTH + 1),
                 max: MAX_DEPTH,
             });
         }
-        let leaf_edge = edge_at(edge, depth);
+        let leaf_edge = edge_at(root_m, depth);
         let magnitude = min.abs().max(max.abs()).max_element();
         if !leaf_edge.is_normal() || leaf_edge < magnitude * (1.0 / (1u32 << 20) as Real) {
             return Err(OctreeError::LeafBelowPrecision {
@@ -102,8 +102,8 @@ impl Octree {
         regions.resize_with(1 << (3 * split), || None);
         Ok(Self {
             min,
-            edge,
-            leaf_size,
+            root_m,
+            leaf_m,
             depth,
             leaf_edge,
             layout,
@@ -113,14 +113,14 @@ impl Octree {
     }
 
     /// An empty octree whose cubic root encloses `bounds`: centred on them, with an edge
-    /// of `leaf_size · 2^k` for the smallest `k` that fits, so that the real leaf edge
-    /// is exactly `leaf_size`.
+    /// of `leaf_m · 2^k` for the smallest `k` that fits, so that the real leaf edge
+    /// is exactly `leaf_m` (metres).
     ///
     /// # Errors
     ///
     /// [`OctreeError::InvalidBounds`] when `bounds.min > bounds.max` on an axis, and
     /// the errors of [`Octree::new`].
-    pub fn enclosing(bounds: Aabb, leaf_size: Real) -> Result<Self, OctreeError> {
+    pub fn enclosing(bounds: Aabb, leaf_m: Real) -> Result<Self, OctreeError> {
         let names = [
             ("bounds.min.x", bounds.min.x),
             ("bounds.min.y", bounds.min.y),
@@ -128,18 +128,15 @@ impl Octree {
             ("bounds.max.x", bounds.max.x),
             ("bounds.max.y", bounds.max.y),
             ("bounds.max.z", bounds.max.z),
-            ("leaf_size", leaf_size),
+            ("leaf_m", leaf_m),
         ];
         for (name, value) in names {
             if !value.is_finite() {
-                return Err(OctreeError::NonFinite { name, value });
+                return Err(OctreeError::not_finite(name, value));
             }
         }
-        if leaf_size <= 0.0 {
-            return Err(OctreeError::NonPositive {
-                name: "leaf_size",
-                value: leaf_size,
-            });
+        if leaf_m <= 0.0 {
+            return Err(OctreeError::not_positive("leaf_m", leaf_m));
         }
         for (i, axis) in ['x', 'y', 'z'].into_iter().enumerate() {
             if bounds.min[i] > bounds.max[i] {
@@ -151,14 +148,14 @@ impl Octree {
             }
         }
         let extent = (bounds.max - bounds.min).max_element();
-        let mut edge = leaf_size;
+        let mut edge = leaf_m;
         let mut depth = 0;
         loop {
             if edge >= extent {
                 let min = bounds.center() - Vec3::splat(edge * 0.5);
                 if min.cmple(bounds.min).all() && (min + Vec3::splat(edge)).cmpge(bounds.max).all()
                 {
-                    return Self::new(min, edge, leaf_size);
+                    return Self::new(min, edge, leaf_m);
                 }
             }
             edge *= 2.0;
@@ -179,32 +176,33 @@ impl Octree {
         self.depth
     }
 
-    /// The real leaf edge, `edge / 2^depth` (`<= leaf_size`).
+    /// The real leaf edge, metres: `root_m / 2^depth` (`<= leaf_m`).
     #[inline]
     #[must_use]
     pub fn leaf_edge(&self) -> Real {
         self.leaf_edge
     }
 
-    /// The leaf size the octree was built with (an upper bound of [`leaf_edge`](Self::leaf_edge)).
+    /// The leaf size the octree was built with, metres (an upper bound of
+    /// [`leaf_edge`](Self::leaf_edge)).
     #[inline]
     #[must_use]
-    pub fn leaf_size(&self) -> Real {
-        self.leaf_size
+    pub fn leaf_m(&self) -> Real {
+        self.leaf_m
     }
 
     /// Edge of the root cube, metres.
     #[inline]
     #[must_use]
-    pub fn edge(&self) -> Real {
-        self.edge
+    pub fn root_m(&self) -> Real {
+        self.root_m
     }
 
     /// The root cube (closed).
     #[inline]
     #[must_use]
     pub fn root(&self) -> Aabb {
-        Aabb::cube(self.min, self.edge)
+        Aabb::cube(self.min, self.root_m)
     }
 
     /// Leaves per axis, `2^depth`.
@@ -221,7 +219,7 @@ impl Octree {
         let depth = depth.min(31);
         GridSpec {
             origin: self.min,
-            cell: edge_at(self.edge, depth),
+            cell: edge_at(self.root_m, depth),
             resolution: 1 << depth,
         }
     }
@@ -651,7 +649,7 @@ impl Octree {
     /// [`OctreeError::RootMismatch`] when the roots differ, [`OctreeError::DepthMismatch`]
     /// when the depths do; `self` is then unchanged.
     pub fn merge(&mut self, other: &Octree) -> Result<(), OctreeError> {
-        if self.min != other.min || self.edge != other.edge {
+        if self.min != other.min || self.root_m != other.root_m {
             return Err(OctreeError::RootMismatch {
                 this: self.root(),
                 other: other.root(),
