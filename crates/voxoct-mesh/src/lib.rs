@@ -89,6 +89,7 @@ mod bitbox;
 pub mod closure;
 mod collide;
 mod export;
+mod fans;
 mod field;
 mod march;
 mod mesh;

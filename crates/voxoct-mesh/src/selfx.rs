@@ -48,6 +48,7 @@
 use robust::{Coord, Coord3D};
 use voxoct_core::glam::{Vec3, Vec3A};
 
+use crate::fans::VertexFans;
 use crate::mesh::Mesh;
 
 /// A vertex in `f64` (exact from `f32`).
@@ -438,46 +439,6 @@ fn certified(
     count == 1
 }
 
-/// The triangles around every vertex, in compressed rows.
-struct Fans {
-    start: Vec<u32>,
-    tris: Vec<u32>,
-}
-
-impl Fans {
-    /// From the triangles whose indices are valid and distinct.
-    #[inline(never)]
-    fn new(nv: usize, triangles: &[[u32; 3]]) -> Self {
-        let mut start = vec![0u32; nv + 1];
-        for t in triangles {
-            if valid_indices(nv, *t) {
-                for &i in t {
-                    start[i as usize + 1] += 1;
-                }
-            }
-        }
-        for i in 0..nv {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut tris = vec![0u32; start[nv] as usize];
-        for (k, t) in triangles.iter().enumerate() {
-            if valid_indices(nv, *t) {
-                for &i in t {
-                    tris[fill[i as usize] as usize] = k as u32;
-                    fill[i as usize] += 1;
-                }
-            }
-        }
-        Self { start, tris }
-    }
-
-    #[inline]
-    fn of(&self, v: usize) -> &[u32] {
-        &self.tris[self.start[v] as usize..self.start[v + 1] as usize]
-    }
-}
-
 /// Whether the indices are in range and distinct.
 #[inline]
 fn valid_indices(nv: usize, t: [u32; 3]) -> bool {
@@ -492,7 +453,7 @@ pub(crate) struct Checker<'a> {
     f32_degenerate: bool,
     facts: Vec<(u8, u8)>,
     boxes: Vec<[Vec3A; 2]>,
-    fans: Fans,
+    fans: VertexFans,
     cert: Vec<bool>,
     /// The boxes the index was built from, when not the current ones.
     index_boxes: Option<Vec<[Vec3A; 2]>>,
@@ -511,10 +472,10 @@ impl<'a> Checker<'a> {
         let nv = vertices.len();
         let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
         let boxes = crate::par::map(triangles, |t| tri_box(vertices, *t));
-        let fans = Fans::new(nv, triangles);
+        let fans = VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false);
         let mut cert = Vec::new();
         crate::par::map_into(&mut cert, nv, |v| {
-            certified(v as u32, fans.of(v), triangles, vertices, &facts)
+            certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
         });
         let index = match &index_boxes {
             Some(b) => Index::build(b, |t| valid_indices(nv, triangles[t])),
@@ -556,7 +517,7 @@ impl<'a> Checker<'a> {
     ) -> Vec<u32> {
         let mut tris: Vec<u32> = Vec::new();
         for &v in moved {
-            tris.extend_from_slice(self.fans.of(v as usize));
+            tris.extend_from_slice(self.fans.fan(v));
         }
         tris.sort_unstable();
         tris.dedup();
@@ -571,13 +532,7 @@ impl<'a> Checker<'a> {
         verts.sort_unstable();
         verts.dedup();
         for &v in &verts {
-            let ok = certified(
-                v,
-                self.fans.of(v as usize),
-                self.triangles,
-                vertices,
-                &self.facts,
-            );
+            let ok = certified(v, self.fans.fan(v), self.triangles, vertices, &self.facts);
             self.cert[v as usize] = ok;
         }
         let mut out = self.index.pairs(self, vertices, Some((&tris, dirty)));

@@ -51,6 +51,7 @@
 
 use voxoct_core::glam::{DVec3, Vec3};
 
+use crate::fans::VertexFans;
 use crate::mesh::{Mesh, TopologyError};
 use crate::par;
 
@@ -379,7 +380,7 @@ fn initial_quadrics(mesh: &Mesh) -> Vec<(Quadric, Vec3)> {
         });
         v
     };
-    let csr = Csr::build(mesh.vertices.len(), &mesh.triangles);
+    let csr = VertexFans::new(mesh.vertices.len(), &mesh.triangles, |_| true, false);
     let mut out = Vec::new();
     par::map_into(&mut out, mesh.vertices.len(), |v| {
         let mut q = Quadric::default();
@@ -397,66 +398,6 @@ fn initial_quadrics(mesh: &Mesh) -> Vec<(Quadric, Vec3)> {
 /// The origin of the quadrics' coordinates.
 fn origin(mesh: &Mesh) -> DVec3 {
     mesh.vertices.first().map_or(DVec3::ZERO, |p| p.as_dvec3())
-}
-
-/// Vertex → triangles, compressed rows: for each corner the triangle and the corner's two
-/// other vertices (next, previous), so that a vertex's fan is read from one place.
-#[derive(Debug, Default)]
-struct Csr {
-    start: Vec<u32>,
-    tris: Vec<u32>,
-    pairs: Vec<[u32; 2]>,
-}
-
-impl Csr {
-    fn build(nv: usize, triangles: &[[u32; 3]]) -> Self {
-        let mut s = Self::default();
-        s.rebuild(nv, triangles);
-        s
-    }
-
-    fn rebuild(&mut self, nv: usize, triangles: &[[u32; 3]]) {
-        self.start.clear();
-        self.start.resize(nv + 1, 0);
-        for t in triangles {
-            for &k in t {
-                self.start[k as usize + 1] += 1;
-            }
-        }
-        for i in 0..nv {
-            self.start[i + 1] += self.start[i];
-        }
-        self.tris.clear();
-        self.tris.resize(3 * triangles.len(), 0);
-        self.pairs.clear();
-        self.pairs.resize(3 * triangles.len(), [0; 2]);
-        // Fill using start[v] as a cursor, then shift back.
-        for (i, t) in triangles.iter().enumerate() {
-            for j in 0..3 {
-                let c = &mut self.start[t[j] as usize];
-                self.tris[*c as usize] = i as u32;
-                self.pairs[*c as usize] = [t[(j + 1) % 3], t[(j + 2) % 3]];
-                *c += 1;
-            }
-        }
-        for i in (1..=nv).rev() {
-            self.start[i] = self.start[i - 1];
-        }
-        self.start[0] = 0;
-    }
-
-    fn fan(&self, v: u32) -> &[u32] {
-        &self.tris[self.range(v)]
-    }
-
-    fn range(&self, v: u32) -> std::ops::Range<usize> {
-        self.start[v as usize] as usize..self.start[v as usize + 1] as usize
-    }
-
-    /// The (next, previous) vertices of `v`'s corners.
-    fn corners(&self, v: u32) -> &[[u32; 2]] {
-        &self.pairs[self.range(v)]
-    }
 }
 
 /// One candidate collapse of a pass.
@@ -491,7 +432,7 @@ struct Collapser<'a> {
     /// neighbourhood changed in the last pass or whose edge was skipped for a lock.
     active: Vec<bool>,
     next_active: Vec<bool>,
-    csr: Csr,
+    csr: VertexFans,
     origin: DVec3,
     max_sq: f64,
     target: usize,
@@ -516,7 +457,7 @@ impl<'a> Collapser<'a> {
             locked: vec![false; nv],
             active: vec![true; nv],
             next_active: vec![false; nv],
-            csr: Csr::default(),
+            csr: VertexFans::default(),
             origin: origin(mesh),
             max_sq: f64::from(opts.max_error) * f64::from(opts.max_error),
             target: opts.target_triangles.unwrap_or(0),
@@ -533,7 +474,7 @@ impl<'a> Collapser<'a> {
         let mut sorted = Vec::new();
         while self.tris.len() > self.target {
             self.passes += 1;
-            self.csr.rebuild(self.pos.len(), &self.tris);
+            self.csr.rebuild(self.pos.len(), &self.tris, |_| true, true);
             self.candidates(&mut cands);
             counting_sort(&cands, &mut sorted);
             let made = self.collapse_pass(&sorted);
