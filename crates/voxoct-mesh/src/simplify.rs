@@ -43,11 +43,9 @@
 //! feature), orders the edges by cost with a counting sort on the float's exponent bits
 //! (coarse classes keep memory access local), and collapses greedily in that order, at most
 //! one collapse per vertex per pass; vertex→triangle adjacency is a flat CSR rebuilt per
-//! pass. No hash map, no heap. Measured on one core of the shared 2-core development
-//! machine under heavy load (load average ≈ 12): about 1 µs of CPU per input triangle per
-//! round, so ≈ 0.5 s per round for the bunny's 586 k triangles at 1 mm; the bunny takes two
-//! rounds because the marched, smoothed input already intersects itself in a few places.
-//! That is slower than the pipeline's budget; see the issue-14 report for the figures.
+//! pass. No hash map, no heap. A marched, smoothed input that already intersects itself
+//! in a few places takes two rounds. Figures: see BENCHMARKS.md (`cargo bench -p
+//! voxoct-mesh`).
 
 use voxoct_core::glam::{DVec3, Vec3};
 
