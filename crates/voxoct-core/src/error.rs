@@ -10,26 +10,21 @@ use crate::geometry::{Aabb, Real};
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum OctreeError {
-    /// A parameter is NaN or infinite (`name` is e.g. `"edge"`, `"leaf_size"`,
-    /// `"min.y"`, `"bounds.max.x"`, or `"min + edge"` when the root's far corner
-    /// overflows).
+    /// An argument is out of its domain: NaN or infinite, or a length that is zero or
+    /// negative. `name` is the parameter as the signature spells it (`"root_m"`,
+    /// `"leaf_m"`, `"min.y"`, `"bounds.max.x"`, or `"min + root_m"` when the root's far
+    /// corner overflows); the same pattern as `voxoct_mesh::MeshError::InvalidArgument`
+    /// and `voxoct_stl::StlError::InvalidArgument`.
     ///
-    /// How to fix: pass finite metres; check the scan's clip box and rig parameters.
-    NonFinite {
+    /// How to fix: pass finite metres (the root edge and the leaf size are lengths, e.g.
+    /// `1.0` and `0.001`); check the scan's clip box and rig parameters.
+    InvalidArgument {
         /// The parameter.
         name: &'static str,
         /// Its value.
-        value: Real,
-    },
-    /// A length that must be positive is zero or negative.
-    ///
-    /// How to fix: the root edge and the leaf size are lengths in metres, e.g. `1.0`
-    /// and `0.001`.
-    NonPositive {
-        /// The parameter.
-        name: &'static str,
-        /// Its value.
-        value: Real,
+        value: f64,
+        /// What the value must be.
+        reason: &'static str,
     },
     /// The leaf size exceeds the root edge.
     ///
@@ -37,9 +32,9 @@ pub enum OctreeError {
     /// whole object must fit in the root).
     LeafLargerThanRoot {
         /// Requested leaf size, metres.
-        leaf_size: Real,
+        leaf_m: Real,
         /// Root edge, metres.
-        edge: Real,
+        root_m: Real,
     },
     /// The leaf size needs more subdivision levels than the octree supports.
     ///
@@ -99,13 +94,14 @@ pub enum OctreeError {
 impl fmt::Display for OctreeError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::NonFinite { name, value } => write!(f, "`{name}` is not finite ({value})"),
-            Self::NonPositive { name, value } => {
-                write!(f, "`{name}` must be positive, got {value}")
-            }
-            Self::LeafLargerThanRoot { leaf_size, edge } => write!(
+            Self::InvalidArgument {
+                name,
+                value,
+                reason,
+            } => write!(f, "invalid `{name}` = {value}: {reason}"),
+            Self::LeafLargerThanRoot { leaf_m, root_m } => write!(
                 f,
-                "leaf size {leaf_size} m is larger than the root edge {edge} m"
+                "leaf size {leaf_m} m is larger than the root edge {root_m} m"
             ),
             Self::TooDeep { depth, max } => write!(
                 f,
@@ -134,3 +130,23 @@ impl fmt::Display for OctreeError {
 }
 
 impl std::error::Error for OctreeError {}
+
+impl OctreeError {
+    /// [`OctreeError::InvalidArgument`] for a NaN or infinite value.
+    pub(crate) fn not_finite(name: &'static str, value: Real) -> Self {
+        Self::InvalidArgument {
+            name,
+            value: f64::from(value),
+            reason: "must be finite",
+        }
+    }
+
+    /// [`OctreeError::InvalidArgument`] for a length that is zero or negative.
+    pub(crate) fn not_positive(name: &'static str, value: Real) -> Self {
+        Self::InvalidArgument {
+            name,
+            value: f64::from(value),
+            reason: "must be positive (a length in metres)",
+        }
+    }
+}

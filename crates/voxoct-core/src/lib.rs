@@ -9,9 +9,9 @@
 //!
 //! # Semantics
 //!
-//! - **Root and depth.** [`Octree::new`]`(min, edge, leaf_size)` covers the closed cube
-//!   `min ..= min + edge`. Subdivision stops at the first depth whose node edge is
-//!   `<= leaf_size`; the real leaf edge is `edge / 2^depth` ([`Octree::leaf_edge`]), so
+//! - **Root and depth.** [`Octree::new`]`(min, root_m, leaf_m)` covers the closed cube
+//!   `min ..= min + root_m` (metres). Subdivision stops at the first depth whose node edge
+//!   is `<= leaf_m`; the real leaf edge is `root_m / 2^depth` ([`Octree::leaf_edge`]), so
 //!   4 mm and 5 mm leaves in a 1 m root give the same depth-8 tree (3.9 mm leaves).
 //!   Leaf `(i, j, k)` spans `min + leaf_edge · (i, j, k)` to `… (i + 1, j + 1, k + 1)`
 //!   ([`GridSpec`], [`Octree::leaf_grid`]); coordinates are integers, never float centres.
@@ -35,65 +35,12 @@
 //!   order (a triangle spanning regions is handled by each of them; the triangles are
 //!   sorted into the regions' lists in parallel too).
 //!
-//! # Why the fast path marks exactly the reference's leaves
+//! # Design
 //!
-//! Every box corner is computed as `min + i · cell` in `f32` with the cell edge an exact
-//! power-of-two fraction of the root edge, so a node's box has bit for bit the corners of
-//! the union of its children. The overlap test compares projections computed with one
-//! fixed formula whose rounding is monotone in the box corners, so a box that contains an
-//! accepted box is accepted too. Hence pruning a rejected node can never lose a leaf, and
-//! the recursive descent marks exactly the leaves whose own box passes the test. The fast
-//! path takes the leaf cells of the triangle's bounding box (clamped to the root; the
-//! candidate range *is* the test's three box axes) as one block of at most 4×4×4 cells
-//! (2×2×2 such blocks up to 8 cells per axis; larger ranges are halved after testing
-//! the whole range's box, exact by the same monotonicity) and decides the ten other
-//! axes for all its cells at once with the very same `f64` products, sums and
-//! comparisons. The block is padded to 2 or 4 cells per axis so that every loop has a
-//! fixed length (the padding cells are dropped). An edge axis acts on two coordinates
-//! only, so it is decided once per column of cells, and since its sums are monotone in
-//! the cell index (so is `f64` rounding) an edge axis that does not separate the
-//! block's most exposed cell separates none and is not evaluated cell by cell. A marked
-//! leaf's sdf is `(x + y) + z` of per-axis terms: the operations of the reference's dot
-//! product, in the same order.
-//!
-//! # Storage
-//!
-//! A sparse octree, compact:
-//!
-//! - the top 3 levels are a dense table of `8^3` region slots (8 bytes each when empty);
-//! - each region is a sparse subtree of interior nodes, each a record of eight `u32`
-//!   child indices into a per-region pool (32 bytes; no pointers);
-//! - its lowest level are **bricks** of 4×4×4 leaves: a `u64` occupancy mask in Morton
-//!   order, a `u32` offset and a size class (16 bytes);
-//! - the leaves' payloads (`hits: u32`, `sdf_sum: f32`, 8 bytes) are packed per brick in
-//!   the order of the mask's set bits, in blocks of 2, 4, 6, 8, 12, … 64 entries that are
-//!   recycled through free lists when a brick grows; pools grow by ~25 %, not 100 %.
-//!
-//! A batch (`insert_all`, `extend`, `par_insert`) works on a scratch copy of the bricks
-//! it touches, each expanded to 64 payloads so that adding a triangle to a leaf is a
-//! plain add, and packs them back when it returns (or midway, past 4096 expanded bricks
-//! in a region, 2 MiB); the scratch is gone between calls, so the figures below are the
-//! resting size. A single `insert` writes straight into the packed storage.
-//!
-//! Measured on the bench snapshot (a 640×480 depth image, f = 580 px, of a 7.5 cm-radius
-//! sphere at 0.7 m: 23 976 triangles with 1–2 mm edges; 1 m root, 1 mm leaf size →
-//! depth 10, 0.977 mm leaves): **43 762 leaves, 58 749 nodes, 537 168 bytes = 12.3 bytes
-//! per marked leaf**, everything included (a pointer octree would need 64+ bytes per
-//! node).
-//!
-//! Speed (`cargo bench -p voxoct-core`, on a shared 2-core VM whose speed drifts by
-//! up to 50 % from minute to minute: the figures are CPU time of the working threads,
-//! and instruction counts by callgrind, which do not drift): the one-shot overlap test
-//! 48–72 ns per call; serial `insert_all` **~2 590 instructions per triangle, 0.20–0.26
-//! µs of CPU in calm minutes** (0.33 µs in busy ones), tree construction included (down
-//! from ~3 760 instructions and 0.41 µs with one packed update per leaf). Per triangle
-//! there are ~13 candidate cells and ~7 marked leaves; ~1 030 instructions go to the
-//! setup of the edge axes, the candidate range and the dispatch, ~750 to the exact
-//! block test and ~800 to the payload updates and the bricks' expansion. One `insert`
-//! call per triangle (straight into the packed storage) costs ~0.28 µs; the reference
-//! descent ~3 µs. `par_insert` partitions the triangles in parallel (~7 % more
-//! instructions in all); on the snapshot (4 equal regions) the busiest of 2 threads
-//! does about half the work of one (0.17–0.22 µs of CPU per triangle).
+//! Why the fast insertion marks exactly the leaves of the reference descent (a proof
+//! sketch), and the storage layout (bricks of 4×4×4 leaves, packed payloads, 8^3
+//! regions), are in ARCHITECTURE.md, section "voxoct-core"; insertion speed and bytes per
+//! leaf are in BENCHMARKS.md (`cargo bench -p voxoct-core`).
 //!
 //! # Example
 //!

@@ -386,22 +386,19 @@ fn errors_name_the_bad_value() {
     let nan = f32::NAN;
     assert!(matches!(
         Octree::new(Vec3::new(0.0, nan, 0.0), 1.0, 0.1),
-        Err(E::NonFinite { name: "min.y", .. })
+        Err(E::InvalidArgument { name: "min.y", .. })
     ));
     assert!(matches!(
         Octree::new(Vec3::ZERO, f32::INFINITY, 0.1),
-        Err(E::NonFinite { name: "edge", .. })
+        Err(E::InvalidArgument { name: "root_m", .. })
     ));
     assert!(matches!(
         Octree::new(Vec3::ZERO, 1.0, -0.1),
-        Err(E::NonPositive {
-            name: "leaf_size",
-            ..
-        })
+        Err(E::InvalidArgument { name: "leaf_m", .. })
     ));
     assert!(matches!(
         Octree::new(Vec3::ZERO, 0.0, 0.1),
-        Err(E::NonPositive { name: "edge", .. })
+        Err(E::InvalidArgument { name: "root_m", .. })
     ));
     assert!(matches!(
         Octree::new(Vec3::ZERO, 1.0, 2.0),
@@ -425,8 +422,8 @@ fn errors_name_the_bad_value() {
     ));
     assert!(matches!(
         Octree::new(Vec3::splat(f32::MAX), 1e38, 1e38),
-        Err(E::NonFinite {
-            name: "min + edge",
+        Err(E::InvalidArgument {
+            name: "min + root_m",
             ..
         })
     ));

@@ -26,6 +26,51 @@ fn pack(c: UVec3) -> u64 {
     u64::from(c.x) | (u64::from(c.y) << 21) | (u64::from(c.z) << 42)
 }
 
+/// The grid and the options, checked before any work: [`MeshError::InvalidArgument`]
+/// names the first bad one.
+fn check_arguments(grid: &GridSpec, opts: &MeshOptions) -> Result<(), MeshError> {
+    let bad = |name, value: f32, reason| {
+        Err(MeshError::InvalidArgument {
+            name,
+            value: f64::from(value),
+            reason,
+        })
+    };
+    for (name, value) in [
+        ("grid.origin.x", grid.origin.x),
+        ("grid.origin.y", grid.origin.y),
+        ("grid.origin.z", grid.origin.z),
+    ] {
+        if !value.is_finite() {
+            return bad(name, value, "must be finite");
+        }
+    }
+    if !(grid.cell.is_finite() && grid.cell > 0.0) {
+        return bad("grid.cell", grid.cell, "must be finite and positive");
+    }
+    if grid.resolution == 0 || grid.resolution > 1 << 20 {
+        return Err(MeshError::InvalidArgument {
+            name: "grid.resolution",
+            value: f64::from(grid.resolution),
+            reason: "must be in 1..=2^20",
+        });
+    }
+    if let Some(t) = opts.smoothing {
+        if !(t.lambda > 0.0 && t.lambda < 1.0) {
+            return bad("smoothing.lambda", t.lambda, "must be in (0, 1)");
+        }
+        if !(t.mu < -t.lambda && t.mu > -1.0) {
+            return bad("smoothing.mu", t.mu, "must be in (-1, -lambda)");
+        }
+    }
+    if let Floor::Y(y) = opts.floor
+        && !y.is_finite()
+    {
+        return bad("floor", y, "Floor::Y must be finite");
+    }
+    Ok(())
+}
+
 /// Validates the grid and the cells; returns the marked cells as `(coord, value)` with the
 /// value in cells (mean signed distance / cell edge, 0 when not finite), and the inside rule.
 pub(crate) fn prepare(
@@ -34,33 +79,7 @@ pub(crate) fn prepare(
     opts: &MeshOptions,
     out: &mut Vec<(UVec3, f32)>,
 ) -> Result<Inside, MeshError> {
-    if !grid.origin.is_finite() {
-        return Err(MeshError::InvalidGrid("origin is not finite"));
-    }
-    if !(grid.cell.is_finite() && grid.cell > 0.0) {
-        return Err(MeshError::InvalidGrid(
-            "cell edge is not finite and positive",
-        ));
-    }
-    if grid.resolution == 0 || grid.resolution > 1 << 20 {
-        return Err(MeshError::InvalidGrid("resolution must be in 1..=2^20"));
-    }
-    if let Some(t) = opts.smoothing
-        && !(t.lambda > 0.0 && t.lambda < 1.0 && t.mu < -t.lambda && t.mu > -1.0)
-    {
-        return Err(MeshError::InvalidOption {
-            field: "smoothing",
-            reason: "need 0 < lambda < 1 and -1 < mu < -lambda",
-        });
-    }
-    if let Floor::Y(y) = opts.floor
-        && !y.is_finite()
-    {
-        return Err(MeshError::InvalidOption {
-            field: "floor",
-            reason: "Floor::Y must be finite",
-        });
-    }
+    check_arguments(grid, opts)?;
     let min_hits = opts.min_hits.max(1);
     let inv = 1.0 / grid.cell;
     out.clear();
@@ -234,13 +253,36 @@ fn fill_enclosed(
     min_component: usize,
     specks: Option<(usize, Inside)>,
 ) -> Result<(), MeshError> {
+    let (lo, n) = fill_box(cells, floor, max_gap)?;
+    let values = BoxValues::new(cells, lo, n);
+    let mut marked = values.marked.clone();
+    remove_small_groups(&mut marked, min_component);
+    let chosen = narrowest_closing(&marked, floor.is_some(), max_gap);
+    // Kept cells: marked or enclosed, minus the specks.
+    let mut keep = marked.clone();
+    for (k, e) in keep.bits.iter_mut().zip(&chosen.bits) {
+        *k |= e;
+    }
+    if let Some((min, inside)) = specks {
+        drop_specks(&mut keep, &marked, &chosen, &values, min, inside);
+    }
+    values.write_cells(cells, &keep, &marked);
+    Ok(())
+}
+
+/// The box the flood fill runs in: the cells' bounds padded by one free layer beyond any
+/// closing plus the sentinel border, cut at the floor (its minimum corner and size).
+fn fill_box(
+    cells: &[(UVec3, f32)],
+    floor: Option<u32>,
+    max_gap: u32,
+) -> Result<(IVec3, [usize; 3]), MeshError> {
     let mut lo = IVec3::splat(i32::MAX);
     let mut hi = IVec3::splat(i32::MIN);
-    for c in cells.iter() {
+    for c in cells {
         lo = lo.min(c.0.as_ivec3());
         hi = hi.max(c.0.as_ivec3());
     }
-    // Padding: one free layer beyond any closing, plus the sentinel border.
     let pad = IVec3::splat(max_gap.min(1 << 16) as i32 + 2);
     lo -= pad;
     hi += pad;
@@ -255,92 +297,132 @@ fn fill_enclosed(
             limit: FILL_LIMIT,
         });
     }
-    let n = [dim.x as usize, dim.y as usize, dim.z as usize];
-    let mut marked = BitBox::new(n);
-    let w = marked.w;
-    let place = |c: UVec3| {
-        let q = (c.as_ivec3() - lo).as_uvec3();
-        (q.x as usize, q.z as usize * n[1] + q.y as usize)
-    };
-    for c in cells.iter() {
-        let (x, r) = place(c.0);
-        marked.set(x, r);
-    }
-    // The values, in box order: cell k of `all` (the marked cells) has `vals[rank(k)]`.
-    let all = marked.bits.clone();
-    let mut rank = Vec::with_capacity(all.len());
-    let mut acc = 0u32;
-    for b in &all {
-        rank.push(acc);
-        acc += b.count_ones();
-    }
-    let index = |x: usize, r: usize| {
-        let k = r * w + x / 64;
-        rank[k] as usize + (all[k] & ((1u64 << (x % 64)) - 1)).count_ones() as usize
-    };
-    let mut vals = vec![0.0f32; acc as usize];
-    for c in cells.iter() {
-        let (x, r) = place(c.0);
-        vals[index(x, r)] = c.1;
-    }
-    remove_small_groups(&mut marked, min_component);
+    Ok((lo, [dim.x as usize, dim.y as usize, dim.z as usize]))
+}
 
-    let mut chosen = enclosed(&marked, floor.is_some(), max_gap);
-    let widest = chosen.count();
-    for gap in 0..max_gap {
-        let v = enclosed(&marked, floor.is_some(), gap);
-        if 2 * v.count() >= widest {
-            chosen = v;
-            break;
+/// The input cells as bits of the fill box, and their values in box order: cell `k` of
+/// `marked` has `vals[rank(k)]`.
+struct BoxValues {
+    lo: IVec3,
+    n: [usize; 3],
+    /// The input cells (before any group is removed).
+    marked: BitBox,
+    /// Marked cells before each word of `marked`.
+    rank: Vec<u32>,
+    vals: Vec<f32>,
+}
+
+impl BoxValues {
+    fn new(cells: &[(UVec3, f32)], lo: IVec3, n: [usize; 3]) -> Self {
+        let mut marked = BitBox::new(n);
+        let place = |c: UVec3| {
+            let q = (c.as_ivec3() - lo).as_uvec3();
+            (q.x as usize, q.z as usize * n[1] + q.y as usize)
+        };
+        for c in cells {
+            let (x, r) = place(c.0);
+            marked.set(x, r);
         }
+        let mut rank = Vec::with_capacity(marked.bits.len());
+        let mut acc = 0u32;
+        for b in &marked.bits {
+            rank.push(acc);
+            acc += b.count_ones();
+        }
+        let mut out = Self {
+            lo,
+            n,
+            marked,
+            rank,
+            vals: vec![0.0f32; acc as usize],
+        };
+        for c in cells {
+            let (x, r) = place(c.0);
+            let i = out.index(x, r);
+            out.vals[i] = c.1;
+        }
+        out
     }
-    // Kept cells: marked or enclosed, minus the specks.
-    let mut keep = marked.clone();
-    for (k, e) in keep.bits.iter_mut().zip(&chosen.bits) {
-        *k |= e;
+
+    /// Index in `vals` of the marked cell at bit `x` of row `r`.
+    #[inline]
+    fn index(&self, x: usize, r: usize) -> usize {
+        let k = r * self.marked.w + x / 64;
+        self.rank[k] as usize
+            + (self.marked.bits[k] & ((1u64 << (x % 64)) - 1)).count_ones() as usize
     }
-    if let Some((min, inside)) = specks {
-        let enclosed_in = inside.test(f32::NEG_INFINITY);
-        let mut ins = BitBox::new(n);
-        for (k, o) in ins.bits.iter_mut().enumerate() {
-            let (m, e) = (marked.bits[k], chosen.bits[k]);
-            let mut bits = if enclosed_in { e } else { 0 };
-            let mut rest = m;
-            while rest != 0 {
-                let b = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
-                if inside.test(vals[index(64 * (k % w) + b, k / w)]) {
-                    bits |= 1 << b;
+
+    /// Replaces `cells` by the cells of `keep` in z, y, x order: a marked cell with its
+    /// value, any other with `-inf` (enclosed).
+    fn write_cells(&self, cells: &mut Vec<(UVec3, f32)>, keep: &BitBox, marked: &BitBox) {
+        let (n, w) = (self.n, keep.w);
+        cells.clear();
+        cells.reserve_exact(keep.count());
+        for r in 0..keep.rows() {
+            let (y, z) = (r % n[1], r / n[1]);
+            for i in 0..w {
+                let mut bits = keep.bits[r * w + i];
+                let m = marked.bits[r * w + i];
+                while bits != 0 {
+                    let b = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let x = 64 * i + b;
+                    let v = if m >> b & 1 == 1 {
+                        self.vals[self.index(x, r)]
+                    } else {
+                        f32::NEG_INFINITY
+                    };
+                    let p = self.lo + IVec3::new(x as i32, y as i32, z as i32);
+                    cells.push((p.as_uvec3(), v));
                 }
             }
-            *o = bits;
-        }
-        let before = ins.clone();
-        remove_small_groups(&mut ins, min);
-        for ((k, b), a) in keep.bits.iter_mut().zip(&before.bits).zip(&ins.bits) {
-            *k &= !(b & !a);
         }
     }
-    cells.clear();
-    cells.reserve_exact(keep.count());
-    for r in 0..keep.rows() {
-        let (y, z) = (r % n[1], r / n[1]);
-        for i in 0..w {
-            let mut bits = keep.bits[r * w + i];
-            let m = marked.bits[r * w + i];
-            while bits != 0 {
-                let b = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let x = 64 * i + b;
-                let v = if m >> b & 1 == 1 {
-                    vals[index(x, r)]
-                } else {
-                    f32::NEG_INFINITY
-                };
-                let p = lo + IVec3::new(x as i32, y as i32, z as i32);
-                cells.push((p.as_uvec3(), v));
+}
+
+/// The enclosed cells of the smallest closing (from 0) whose enclosed space is at least
+/// half that of the widest, `max_gap`.
+fn narrowest_closing(marked: &BitBox, floor: bool, max_gap: u32) -> BitBox {
+    let widest = enclosed(marked, floor, max_gap);
+    let reference = widest.count();
+    for gap in 0..max_gap {
+        let v = enclosed(marked, floor, gap);
+        if 2 * v.count() >= reference {
+            return v;
+        }
+    }
+    widest
+}
+
+/// Removes from `keep` the connected groups of inside cells (enclosed ones when `-inf`
+/// counts as inside, marked ones by their value) smaller than `min`.
+fn drop_specks(
+    keep: &mut BitBox,
+    marked: &BitBox,
+    chosen: &BitBox,
+    values: &BoxValues,
+    min: usize,
+    inside: Inside,
+) {
+    let w = keep.w;
+    let enclosed_in = inside.test(f32::NEG_INFINITY);
+    let mut ins = BitBox::new(values.n);
+    for (k, o) in ins.bits.iter_mut().enumerate() {
+        let (m, e) = (marked.bits[k], chosen.bits[k]);
+        let mut bits = if enclosed_in { e } else { 0 };
+        let mut rest = m;
+        while rest != 0 {
+            let b = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            if inside.test(values.vals[values.index(64 * (k % w) + b, k / w)]) {
+                bits |= 1 << b;
             }
         }
+        *o = bits;
     }
-    Ok(())
+    let before = ins.clone();
+    remove_small_groups(&mut ins, min);
+    for ((k, b), a) in keep.bits.iter_mut().zip(&before.bits).zip(&ins.bits) {
+        *k &= !(b & !a);
+    }
 }

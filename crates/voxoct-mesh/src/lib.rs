@@ -46,28 +46,14 @@
 //! - [`simplify`]: quadric-error edge collapse bounded by a geometric error, keeping the mesh
 //!   closed, manifold and free of new self-intersections (see [`Simplify`]).
 //!
-//! [`MeshOptions::smooth`] selects the most accurate combination. Area-weighted mean distance
-//! from the mesh to the true surface, in cells, with the cells and their signed distances made
-//! by inserting a 1 mm triangulation into a 1 mm [`Octree`] (test `tests/accuracy.rs`):
-//!
-//! | options | sphere r = 30 | torus 30/10 | sphere, ±0.4 mm noise |
-//! |---|---|---|---|
-//! | thesis (hollow, midpoints) | 0.75 | 0.73 | 0.79 |
-//! | solid | 0.75 | 0.70 | 0.79 |
-//! | hollow + signed distance | 0.29 | 0.28 | 0.33 |
-//! | solid + signed distance | 0.016 | 0.028 | 0.13 |
-//! | [`MeshOptions::smooth`] (+ Taubin) | 0.011 | 0.022 | 0.12 |
-//!
-//! # Speed
-//! Cells are held in 8×8×8 bricks; edges are found eight at a time with bit operations and
-//! vertices are numbered by prefix sums, so there is no per-vertex hash map. On the 1 mm shell
-//! of a 15 cm sphere (106 k leaves, 1.27 M triangles), one core of a shared 2-core machine
-//! (`benches/mesh.rs`): thesis options ≈ 4.3 M leaves/s with a reused [`Mesher`] (≈ 25 ms),
-//! ≈ 2.7 M leaves/s with fresh buffers. Solid mode also visits the enclosed volume (1.8 M
-//! cells here) and floods the bounding box, held as bits and filled a row of cells at a time
-//! (one carry chain fills a run): ≈ 55 ms; [`MeshOptions::smooth`] ≈ 0.14 s. With the
-//! default `parallel` feature, smoothing, [`Mesh::check_closed_manifold`] and the piece
-//! counts use every core (rayon), with results identical to one thread.
+//! [`MeshOptions::default`] is [`MeshOptions::smooth`], the most accurate combination and
+//! what the `scan` example uses; [`MeshOptions::thesis`] is the thesis's method. Why, with
+//! the accuracy of each combination (`tests/accuracy.rs`), how marching stays fast (8×8×8
+//! bricks, bit-parallel edges, prefix-sum vertex numbering, a bit-box flood fill) and the
+//! design of the self-intersection test and simplification: ARCHITECTURE.md, section
+//! "voxoct-mesh". Speed: BENCHMARKS.md (`cargo bench -p voxoct-mesh`). With the default
+//! `parallel` feature, smoothing, [`Mesh::check_closed_manifold`] and the piece counts use
+//! every core (rayon), with results identical to one thread.
 //!
 //! ```
 //! use voxoct_mesh::{Cell, GridSpec, MeshOptions, glam::{UVec3, Vec3}, mesh_cells};
@@ -89,6 +75,7 @@ mod bitbox;
 pub mod closure;
 mod collide;
 mod export;
+mod fans;
 mod field;
 mod march;
 mod mesh;
@@ -115,7 +102,7 @@ pub use simplify::{
 /// `hits == 0` are unmarked.
 ///
 /// # Errors
-/// [`MeshError::CellOutsideGrid`], [`MeshError::InvalidGrid`], [`MeshError::InvalidOption`],
+/// [`MeshError::CellOutsideGrid`], [`MeshError::InvalidArgument`],
 /// [`MeshError::FillTooLarge`].
 pub fn mesh_cells(cells: &[Cell], grid: &GridSpec, opts: &MeshOptions) -> Result<Mesh, MeshError> {
     let mut mesh = Mesh::default();

@@ -252,10 +252,25 @@ pub(crate) fn march(
         per_brick,
     } = scratch;
     bricks.build(entries, inside);
-    let bricks = &*bricks;
+    let brick_first = number_vertices(bricks, per_brick);
+    place_vertices(
+        bricks,
+        per_brick,
+        &brick_first,
+        grid,
+        inside,
+        placement,
+        &mut out.vertices,
+    );
+    let vertex_count = brick_first[bricks.keys.len()];
+    emit_triangles(bricks, per_brick, vertex_count, &mut out.triangles);
+}
+
+/// Pass 1, per brick: the crossing-edge masks of its rows and their vertex indices (the
+/// brick's first vertex, from a prefix sum over the bricks, plus the offset within the
+/// brick). Returns the first vertex of every brick and, last, the vertex count.
+fn number_vertices(bricks: &Bricks, per_brick: &mut Vec<BrickRows>) -> Vec<u32> {
     let n = bricks.keys.len();
-    // Pass 1, per brick: the crossing-edge masks of its rows and their vertex offsets from
-    // the brick's first vertex; then the bricks' first vertices by a prefix sum.
     par::map_into(per_brick, n, |b| {
         let p = bricks.padded_rows(b);
         let mut rows = [0u64; ROWS];
@@ -283,21 +298,31 @@ pub(crate) fn march(
     for b in 0..n {
         brick_first[b + 1] = brick_first[b] + per_brick[b].count;
     }
-    let count = brick_first[n];
-    let brick_first = &brick_first;
     par::for_each_zip(per_brick.iter_mut(), 0..n, |b, br, _| {
         let first = u64::from(brick_first[b]);
         for r in &mut br.rows {
             *r += first;
         }
     });
-    let per_brick = &*per_brick;
+    brick_first
+}
 
-    // Pass 2: vertex positions, in index order (each brick fills its own range).
+/// Pass 2: vertex positions, in index order (each brick fills its own range of
+/// `vertices`, which is cleared first).
+fn place_vertices(
+    bricks: &Bricks,
+    per_brick: &[BrickRows],
+    brick_first: &[u32],
+    grid: &GridSpec,
+    inside: Inside,
+    placement: Placement,
+    vertices: &mut Vec<Vec3>,
+) {
+    let n = bricks.keys.len();
+    let count = brick_first[n];
     let cell = f64::from(grid.cell);
     // World position of grid point g (shifted coordinates): origin + (g - SHIFT + 0.5) · cell.
     let offset = grid.origin.as_dvec3() + DVec3::splat((0.5 - f64::from(SHIFT)) * cell);
-    let vertices = &mut out.vertices;
     vertices.clear();
     vertices.resize(count as usize, Vec3::ZERO);
     let mut ranges = Vec::with_capacity(n);
@@ -351,8 +376,17 @@ pub(crate) fn march(
         }
         debug_assert!(next.next().is_none());
     });
+}
 
-    // Pass 3: triangles, per group of bricks, joined in brick order.
+/// Pass 3: triangles, per group of bricks, joined in brick order (`triangles` is
+/// cleared first; `count` vertices make the capacity guess).
+fn emit_triangles(
+    bricks: &Bricks,
+    per_brick: &[BrickRows],
+    count: u32,
+    triangles: &mut Vec<[u32; 3]>,
+) {
+    let n = bricks.keys.len();
     let table = &*CASES;
     let brick_triangles = |b: usize, triangles: &mut Vec<[u32; 3]>| {
         let p = &per_brick[b].padded;
@@ -395,7 +429,6 @@ pub(crate) fn march(
             }
         }
     };
-    let triangles = &mut out.triangles;
     triangles.clear();
     // A closed piece of genus g has 2 (V - 2 + 2g) triangles: twice the vertices, plus slack
     // for handles, so that the buffer need not double.

@@ -73,7 +73,19 @@ impl Default for Taubin {
     }
 }
 
-/// Options of [`crate::mesh_cells`]. `Default` is the thesis's method.
+/// Options of [`crate::mesh_cells`].
+///
+/// `Default` is what the project recommends and the `scan` example uses:
+/// [`MeshOptions::smooth`], a solid with signed-distance placement and Taubin smoothing.
+/// [`MeshOptions::thesis`] is the thesis's method (hollow shell, midpoints).
+///
+/// ```
+/// use voxoct_mesh::{MeshOptions, Placement};
+///
+/// assert_eq!(MeshOptions::default(), MeshOptions::smooth());
+/// let thesis = MeshOptions::thesis();
+/// assert!(!thesis.solid && thesis.placement == Placement::Midpoint && thesis.smoothing.is_none());
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MeshOptions {
     /// Cells hit by fewer triangles count as unmarked (single errant depth values). 0 and 1
@@ -103,8 +115,9 @@ pub struct MeshOptions {
 }
 
 impl Default for MeshOptions {
+    /// [`MeshOptions::smooth`], the recommended options.
     fn default() -> Self {
-        Self::thesis()
+        Self::smooth()
     }
 }
 
@@ -123,7 +136,7 @@ impl MeshOptions {
         }
     }
 
-    /// The most accurate combination: solid with the floor at the lowest marked layer and
+    /// The most accurate combination, and the [`Default`]: solid with the floor at the lowest marked layer and
     /// gaps up to 2 cells closed, signed-distance placement, Taubin smoothing (10
     /// iterations), blobs under 8 cells dropped.
     #[must_use]
@@ -156,15 +169,21 @@ pub enum MeshError {
         /// The grid's resolution.
         resolution: u32,
     },
-    /// The grid is unusable (non-finite origin, non-positive cell, or resolution above 2^20).
-    #[error("invalid grid: {0}")]
-    InvalidGrid(&'static str),
-    /// An option is out of range.
-    #[error("invalid option {field}: {reason}")]
-    InvalidOption {
-        /// The option's name.
-        field: &'static str,
-        /// What is wrong.
+    /// A grid parameter or an option is out of its domain: `name` is the field as
+    /// written in Rust (`"grid.origin.x"`, `"grid.cell"`, `"grid.resolution"`,
+    /// `"smoothing.lambda"`, `"smoothing.mu"`, `"floor"`); the same pattern as
+    /// `voxoct_core::OctreeError::InvalidArgument` and
+    /// `voxoct_stl::StlError::InvalidArgument`.
+    ///
+    /// How to fix: pass the [`voxoct_core::GridSpec`] the octree gives
+    /// (`Octree::leaf_grid`), and options within the ranges the message states.
+    #[error("invalid `{name}` = {value}: {reason}")]
+    InvalidArgument {
+        /// The field.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What the value must be.
         reason: &'static str,
     },
     /// The box to flood-fill for solid mode is too large to hold densely.

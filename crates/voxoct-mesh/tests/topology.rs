@@ -5,7 +5,8 @@
 use proptest::prelude::*;
 use voxoct_mesh::glam::{UVec3, Vec3};
 use voxoct_mesh::{
-    Cell, Floor, GridSpec, Mesh, MeshOptions, Placement, Taubin, TopologyError, mesh_cells,
+    Cell, Floor, GridSpec, Mesh, MeshError, MeshOptions, Placement, Taubin, TopologyError,
+    mesh_cells,
 };
 
 const RES: u32 = 16;
@@ -386,12 +387,29 @@ fn errors_name_the_cell_and_option() {
         }),
         ..MeshOptions::thesis()
     };
-    assert!(mesh_cells(&[], &grid(), &bad).is_err());
+    assert!(matches!(
+        mesh_cells(&[], &grid(), &bad),
+        Err(MeshError::InvalidArgument {
+            name: "smoothing.mu",
+            ..
+        })
+    ));
     let g = GridSpec {
         cell: 0.0,
         ..grid()
     };
-    assert!(mesh_cells(&[], &g, &MeshOptions::thesis()).is_err());
+    let e = mesh_cells(&[], &g, &MeshOptions::thesis()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            MeshError::InvalidArgument {
+                name: "grid.cell",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("grid.cell"), "{e}");
     assert!(
         mesh_cells(&[], &grid(), &MeshOptions::thesis())
             .unwrap()

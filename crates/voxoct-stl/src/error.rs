@@ -105,13 +105,21 @@ pub enum StlError {
         vertex_count: usize,
     },
 
-    /// A scale that is not finite and positive.
+    /// An argument out of its domain: `name` is the parameter as the signature spells it
+    /// (`"scale"`: not finite and positive); the same pattern as
+    /// `voxoct_core::OctreeError::InvalidArgument` and
+    /// `voxoct_mesh::MeshError::InvalidArgument`.
     ///
-    /// How to fix: use 1000.0 to write a mesh in metres as millimetres, 1.0 to keep units.
-    #[error("scale {scale} is not finite and positive")]
-    InvalidScale {
-        /// The scale given.
-        scale: f32,
+    /// How to fix: use scale 1000.0 to write a mesh in metres as millimetres, 1.0 to keep
+    /// units.
+    #[error("invalid `{name}` = {value}: {reason}")]
+    InvalidArgument {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What the value must be.
+        reason: &'static str,
     },
 
     /// The path is not a regular file (a directory, a device such as `/dev/zero`, a FIFO).

@@ -8,7 +8,7 @@ use std::str::FromStr;
 
 use voxoct_core::glam::Vec3;
 
-use crate::write::{check_input, write_atomic};
+use crate::write::check_input;
 use crate::{StlError, StlFormat, obj, ply, threemf};
 
 /// A mesh file format that voxoct writes and reads.
@@ -145,7 +145,7 @@ impl Default for WriteOptions {
 /// the writers encode in chunks).
 ///
 /// # Errors
-/// [`StlError::InvalidScale`], [`StlError::IndexOutOfRange`],
+/// [`StlError::InvalidArgument`], [`StlError::IndexOutOfRange`],
 /// [`StlError::VertexDataLength`], format limits ([`StlError::TooManyTriangles`],
 /// [`StlError::No3mfUnit`]), or the writer's [`StlError::Io`] / [`StlError::Zip`].
 pub fn write_mesh<W: Write>(
@@ -156,25 +156,31 @@ pub fn write_mesh<W: Write>(
 ) -> Result<(), StlError> {
     mesh.check(opts.scale)?;
     match format {
-        MeshFormat::Stl => crate::write(w, mesh.vertices, mesh.triangles, opts.stl, opts.scale),
+        MeshFormat::Stl => {
+            crate::write::encode(w, mesh.vertices, mesh.triangles, opts.stl, opts.scale)
+        }
         MeshFormat::ThreeMf => threemf::write_3mf(w, mesh.vertices, mesh.triangles, opts.scale),
         MeshFormat::Ply => ply::write_ply(w, mesh, opts.scale),
         MeshFormat::Obj => obj::write_obj(w, mesh.vertices, mesh.triangles, opts.scale),
     }
 }
 
-/// Writes `mesh` to the file at `path` atomically (a temporary file in the same directory,
-/// synced and renamed; never a partly written file at `path`).
+/// Writes `mesh` to the file at `path` atomically with [`write_atomic`](crate::write_atomic)
+/// (a temporary file in the same directory, synced and renamed; never a partly written
+/// file at `path`; a symbolic link, directory or device at `path` is refused).
 ///
 /// # Errors
-/// As [`write_mesh`], wrapped in [`StlError::File`] naming `path`.
+/// As [`write_mesh`], or the refusal of [`write_atomic`](crate::write_atomic) as
+/// [`StlError::Io`], wrapped in [`StlError::File`] naming `path`.
 pub fn write_mesh_file(
     path: impl AsRef<Path>,
     format: MeshFormat,
     mesh: MeshRef<'_>,
     opts: &WriteOptions,
 ) -> Result<(), StlError> {
-    write_atomic(path.as_ref(), |w| write_mesh(w, format, mesh, opts))
+    let path = path.as_ref();
+    crate::write_atomic(path, |w| write_mesh(w, format, mesh, opts))
+        .map_err(|e: StlError| e.in_file(path))
 }
 
 /// Area-weighted unit vertex normals of an outward-wound mesh (zero for a vertex whose

@@ -20,8 +20,10 @@
 //!
 //! - [`write_binary`] / [`write_ascii`] stream an indexed mesh to any [`std::io::Write`];
 //!   facet normals come from the winding (counter-clockwise seen from outside).
-//! - [`write_file`] writes to a temporary file in the same directory and renames it, so a
-//!   failed write never leaves a partial file at the destination.
+//! - [`write_file`] (and [`write_mesh_file`] for every format) writes through
+//!   [`write_atomic`]: a temporary file in the same directory, synced and renamed, so a
+//!   failed write never leaves a partial file at the destination. [`write_atomic`] is public
+//!   so that every file the workspace writes goes through the same code.
 //! - [`read`] / [`read_file`] detect binary or ASCII robustly (a binary header may begin with
 //!   `solid`), and report truncation, a count that disagrees with the length, non-finite
 //!   coordinates and ASCII syntax errors with line numbers.
@@ -44,12 +46,11 @@
 //! assert_eq!(soup[3].v[2], Vec3::new(0.0, 0.0, 10.0));
 //! ```
 //!
-//! Throughput (`benches/stl.rs`, 1 M triangles, shared machine): binary into a `Vec`
-//! ≈ 2 GiB/s, binary to a file through [`write_file`] (synced, renamed) ≈ 0.5 GiB/s, ASCII
-//! ≈ 140 MiB/s.
+//! Throughput of the writers (`benches/stl.rs`): see BENCHMARKS.md.
 
 pub use voxoct_core::glam;
 
+mod atomic;
 mod error;
 mod format;
 pub mod obj;
@@ -58,6 +59,7 @@ mod read;
 pub mod threemf;
 mod write;
 
+pub use atomic::write_atomic;
 pub use error::StlError;
 pub use format::{
     MAX_ELEMENTS, MeshFormat, MeshRef, ReadMesh, WriteOptions, read_mesh, read_mesh_file,

@@ -1,9 +1,7 @@
-//! STL writers: binary, ASCII, and atomic file output.
+//! STL writers: binary, ASCII, and STL file output.
 
-use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 use byteorder::{ByteOrder, LittleEndian};
 use voxoct_core::glam::Vec3;
@@ -29,13 +27,18 @@ const HEADER: &[u8] = b"voxoct binary STL";
 /// Triangles encoded per `write_all` call.
 const CHUNK: usize = 1024;
 
+/// The one input check of every writer: a finite positive scale, every index in range.
 pub(crate) fn check_input(
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
     scale: f32,
 ) -> Result<(), StlError> {
     if !(scale.is_finite() && scale > 0.0) {
-        return Err(StlError::InvalidScale { scale });
+        return Err(StlError::InvalidArgument {
+            name: "scale",
+            value: f64::from(scale),
+            reason: "must be finite and positive (file units per metre: 1000 for millimetres)",
+        });
     }
     for (t, tri) in triangles.iter().enumerate() {
         for &index in tri {
@@ -69,15 +72,25 @@ fn facet(vertices: &[Vec3], tri: &[u32; 3], scale: f32) -> (Vec3, [Vec3; 3]) {
 /// Facet normals are computed from the winding (counter-clockwise seen from outside).
 ///
 /// # Errors
-/// [`StlError::InvalidScale`], [`StlError::IndexOutOfRange`],
+/// [`StlError::InvalidArgument`], [`StlError::IndexOutOfRange`],
 /// [`StlError::TooManyTriangles`], or the writer's [`StlError::Io`].
 pub fn write_binary<W: Write>(
-    mut w: W,
+    w: W,
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
     scale: f32,
 ) -> Result<(), StlError> {
     check_input(vertices, triangles, scale)?;
+    encode_binary(w, vertices, triangles, scale)
+}
+
+/// [`write_binary`] without the input check (the caller made it).
+pub(crate) fn encode_binary<W: Write>(
+    mut w: W,
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    scale: f32,
+) -> Result<(), StlError> {
     let count = u32::try_from(triangles.len()).map_err(|_| StlError::TooManyTriangles {
         count: triangles.len(),
     })?;
@@ -114,7 +127,7 @@ pub fn write_binary<W: Write>(
 /// gives the same `f32` bits.
 ///
 /// # Errors
-/// [`StlError::InvalidScale`], [`StlError::IndexOutOfRange`], or the writer's [`StlError::Io`].
+/// [`StlError::InvalidArgument`], [`StlError::IndexOutOfRange`], or the writer's [`StlError::Io`].
 pub fn write_ascii<W: Write>(
     w: W,
     vertices: &[Vec3],
@@ -122,6 +135,16 @@ pub fn write_ascii<W: Write>(
     scale: f32,
 ) -> Result<(), StlError> {
     check_input(vertices, triangles, scale)?;
+    encode_ascii(w, vertices, triangles, scale)
+}
+
+/// [`write_ascii`] without the input check (the caller made it).
+pub(crate) fn encode_ascii<W: Write>(
+    w: W,
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    scale: f32,
+) -> Result<(), StlError> {
     let mut w = BufWriter::with_capacity(1 << 16, w);
     writeln!(w, "solid voxoct")?;
     for tri in triangles {
@@ -150,29 +173,32 @@ pub fn write<W: Write>(
     format: StlFormat,
     scale: f32,
 ) -> Result<(), StlError> {
+    check_input(vertices, triangles, scale)?;
+    encode(w, vertices, triangles, format, scale)
+}
+
+/// [`write()`] without the input check (the caller made it).
+pub(crate) fn encode<W: Write>(
+    w: W,
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    format: StlFormat,
+    scale: f32,
+) -> Result<(), StlError> {
     match format {
-        StlFormat::Binary => write_binary(w, vertices, triangles, scale),
-        StlFormat::Ascii => write_ascii(w, vertices, triangles, scale),
+        StlFormat::Binary => encode_binary(w, vertices, triangles, scale),
+        StlFormat::Ascii => encode_ascii(w, vertices, triangles, scale),
     }
 }
 
-static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
-
-fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out.stl".to_owned());
-    let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    path.with_file_name(format!(".{name}.{}-{n}.tmp", std::process::id()))
-}
-
-/// Writes an STL file atomically: into a temporary file in the same directory, synced,
-/// then renamed over `path`. On any error the temporary file is removed and `path` is
-/// untouched, so there is never a partly written file at `path`.
+/// Writes an STL file atomically with [`write_atomic`](crate::write_atomic): into a
+/// temporary file in the same directory, synced, then renamed over `path`. On any error
+/// the temporary file is removed and `path` is untouched, so there is never a partly
+/// written file at `path`; a symbolic link, directory or device at `path` is refused.
 ///
 /// # Errors
-/// As [`write()`], wrapped in [`StlError::File`] naming `path`.
+/// As [`write()`], or the refusal of [`write_atomic`](crate::write_atomic) as
+/// [`StlError::Io`], wrapped in [`StlError::File`] naming `path`.
 pub fn write_file(
     path: impl AsRef<Path>,
     vertices: &[Vec3],
@@ -180,31 +206,7 @@ pub fn write_file(
     format: StlFormat,
     scale: f32,
 ) -> Result<(), StlError> {
-    write_atomic(path.as_ref(), |w| {
-        write(w, vertices, triangles, format, scale)
-    })
-}
-
-/// Runs `body` on a buffered temporary file next to `path`, syncs it and renames it over
-/// `path`; on any error removes the temporary file and wraps the error with `path`.
-pub(crate) fn write_atomic(
-    path: &Path,
-    body: impl FnOnce(&mut BufWriter<File>) -> Result<(), StlError>,
-) -> Result<(), StlError> {
-    let tmp = temp_path(path);
-    let result = (|| -> Result<(), StlError> {
-        let file = File::create(&tmp)?;
-        let mut w = BufWriter::with_capacity(1 << 20, file);
-        body(&mut w)?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        drop(file);
-        std::fs::rename(&tmp, path)?;
-        Ok(())
-    })();
-    if result.is_err() {
-        // Best effort: the temporary file may not exist.
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(|e| e.in_file(path))
+    let path = path.as_ref();
+    crate::write_atomic(path, |w| write(w, vertices, triangles, format, scale))
+        .map_err(|e: StlError| e.in_file(path))
 }

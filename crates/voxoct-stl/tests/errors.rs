@@ -154,7 +154,7 @@ fn writer_rejects_bad_index_and_scale() {
     for s in [0.0, -1.0, f32::NAN, f32::INFINITY] {
         assert!(matches!(
             write_ascii(&mut b, &v, &[[0, 1, 2]], s),
-            Err(StlError::InvalidScale { .. })
+            Err(StlError::InvalidArgument { name: "scale", .. })
         ));
     }
 }
@@ -188,5 +188,43 @@ fn file_errors_name_the_path_and_failed_writes_leave_nothing() {
     assert!(
         err.to_string().contains("out.stl") && err.to_string().contains("line 3"),
         "{err}"
+    );
+}
+
+#[test]
+fn mesh_writers_refuse_what_is_not_a_regular_file_and_name_it() {
+    use voxoct_stl::{MeshFormat, MeshRef, WriteOptions, write_mesh_file};
+    let dir = tempfile::tempdir().unwrap();
+    let (v, t) = tet();
+    let sub = dir.path().join("sub.stl");
+    std::fs::create_dir(&sub).unwrap();
+    let err = write_file(&sub, &v, &t, StlFormat::Binary, 1.0).unwrap_err();
+    assert!(err.to_string().contains("sub.stl"), "{err}");
+    assert!(err.to_string().contains("a directory"), "{err}");
+    assert!(matches!(err.root(), StlError::Io(e) if e.kind() == std::io::ErrorKind::InvalidInput));
+    #[cfg(unix)]
+    {
+        let target = dir.path().join("target.ply");
+        std::fs::write(&target, b"keep").unwrap();
+        let link = dir.path().join("link.ply");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        let opts = WriteOptions::default();
+        let err = write_mesh_file(&link, MeshFormat::Ply, MeshRef::new(&v, &t), &opts).unwrap_err();
+        assert!(err.to_string().contains("symbolic link"), "{err}");
+        assert_eq!(std::fs::read(&target).unwrap(), b"keep");
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+    }
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert!(
+        names.iter().all(|n| !n.to_string_lossy().ends_with(".tmp")),
+        "{names:?}"
     );
 }

@@ -1,0 +1,255 @@
+//! The exact pair test: orientation predicates (Shewchuk's, through `robust`), segment and
+//! triangle tests, and the classification of a triangle.
+
+use robust::{Coord, Coord3D};
+use voxoct_core::glam::Vec3;
+
+/// A vertex in `f64` (exact from `f32`).
+pub(super) type P = [f64; 3];
+
+/// Marks a triangle that takes part in no pair test (invalid or degenerate).
+pub(super) const NO_AXIS: u8 = 3;
+
+#[inline]
+pub(super) fn pt(v: Vec3) -> P {
+    [f64::from(v.x), f64::from(v.y), f64::from(v.z)]
+}
+
+#[inline]
+pub(super) fn sign(x: f64) -> i8 {
+    i8::from(x > 0.0) - i8::from(x < 0.0)
+}
+
+#[inline]
+pub(super) fn c3(a: &P) -> Coord3D<f64> {
+    Coord3D {
+        x: a[0],
+        y: a[1],
+        z: a[2],
+    }
+}
+
+/// Exact sign of the orientation of `d` against the plane `a, b, c`; 0 when coplanar.
+#[inline]
+pub(super) fn orient3d(a: &P, b: &P, c: &P, d: &P) -> i8 {
+    sign(robust::orient3d(c3(a), c3(b), c3(c), c3(d)))
+}
+
+/// Exact sign of the orientation of the projections of `a, b, c` that drop axis `k`: the
+/// sign of the `k` component of `(b - a) × (c - a)`.
+#[inline]
+pub(super) fn orient2d(a: &P, b: &P, c: &P, k: usize) -> i8 {
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    sign(robust::orient2d(
+        Coord { x: a[i], y: a[j] },
+        Coord { x: b[i], y: b[j] },
+        Coord { x: c[i], y: c[j] },
+    ))
+}
+
+/// Whether collinear points `x`, `y` lie in lexicographic order (`x <= y`).
+#[inline]
+pub(super) fn lex_le(x: &P, y: &P) -> bool {
+    x.partial_cmp(y).is_some_and(|o| o.is_le())
+}
+
+/// Closed segments `pq` and `rs` meet, in the projection dropping axis `k`.
+pub(super) fn seg_seg_2d(p: &P, q: &P, r: &P, s: &P, k: usize) -> bool {
+    let d1 = orient2d(p, q, r, k);
+    let d2 = orient2d(p, q, s, k);
+    if d1 * d2 > 0 {
+        return false;
+    }
+    let d3 = orient2d(r, s, p, k);
+    let d4 = orient2d(r, s, q, k);
+    if d3 * d4 > 0 {
+        return false;
+    }
+    if d1 == 0 && d2 == 0 && d3 == 0 && d4 == 0 {
+        // All four on one line: lexicographic order (of the projections, which keep the
+        // order along the line) is the order along it; the intervals must overlap.
+        let proj = |x: &P| {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            [x[i], x[j], 0.0]
+        };
+        let (p, q, r, s) = (proj(p), proj(q), proj(r), proj(s));
+        let (lo1, hi1) = if lex_le(&p, &q) { (p, q) } else { (q, p) };
+        let (lo2, hi2) = if lex_le(&r, &s) { (r, s) } else { (s, r) };
+        return lex_le(&lo1, &hi2) && lex_le(&lo2, &hi1);
+    }
+    true
+}
+
+/// Closed triangle `t` (not degenerate in projection `k`) contains `x`, all coplanar.
+pub(super) fn point_in_tri_2d(x: &P, t: &[P; 3], k: usize) -> bool {
+    let o1 = orient2d(&t[0], &t[1], x, k);
+    let o2 = orient2d(&t[1], &t[2], x, k);
+    let o3 = orient2d(&t[2], &t[0], x, k);
+    !((o1 > 0 || o2 > 0 || o3 > 0) && (o1 < 0 || o2 < 0 || o3 < 0))
+}
+
+/// Closed segment `pq` meets closed triangle `t`, all in one plane that projection `k`
+/// maps bijectively.
+pub(super) fn seg_tri_coplanar(p: &P, q: &P, t: &[P; 3], k: usize) -> bool {
+    point_in_tri_2d(p, t, k)
+        || point_in_tri_2d(q, t, k)
+        || seg_seg_2d(p, q, &t[0], &t[1], k)
+        || seg_seg_2d(p, q, &t[1], &t[2], k)
+        || seg_seg_2d(p, q, &t[2], &t[0], k)
+}
+
+/// Closed segment `pq` meets closed triangle `t` (not degenerate; `k` its projection axis),
+/// given `sp`, `sq`: the orientations of `p`, `q` against the plane of `t`.
+pub(super) fn seg_tri(p: &P, q: &P, sp: i8, sq: i8, t: &[P; 3], k: usize) -> bool {
+    if sp * sq > 0 {
+        return false;
+    }
+    if sp == 0 && sq == 0 {
+        return seg_tri_coplanar(p, q, t, k);
+    }
+    // The line pq crosses the plane in one point, within the closed segment; it lies in the
+    // closed triangle when the line passes every directed edge on the same side (or on it).
+    let s1 = orient3d(p, q, &t[0], &t[1]);
+    let s2 = orient3d(p, q, &t[1], &t[2]);
+    let s3 = orient3d(p, q, &t[2], &t[0]);
+    !((s1 > 0 || s2 > 0 || s3 > 0) && (s1 < 0 || s2 < 0 || s3 < 0))
+}
+
+/// Orientations of the points `x` against the plane of `t`.
+#[inline]
+pub(super) fn sides(t: &[P; 3], x: &[P; 3]) -> [i8; 3] {
+    x.each_ref().map(|x| orient3d(&t[0], &t[1], &t[2], x))
+}
+
+/// Whether all three orientations are strictly on one side.
+#[inline]
+pub(super) fn one_side(s: [i8; 3]) -> bool {
+    (s[0] > 0 && s[1] > 0 && s[2] > 0) || (s[0] < 0 && s[1] < 0 && s[2] < 0)
+}
+
+/// Two closed triangles with no shared vertex meet (`k1`, `k2`: their projection axes).
+pub(super) fn tri_tri(t1: &[P; 3], t2: &[P; 3], k1: usize, k2: usize) -> bool {
+    let s2 = sides(t1, t2);
+    if one_side(s2) {
+        return false;
+    }
+    let s1 = sides(t2, t1);
+    if one_side(s1) {
+        return false;
+    }
+    // They meet exactly when an edge of one meets the other: the intersection is convex,
+    // and an extreme point of it lies on the boundary of one of them.
+    (0..3).any(|e| {
+        let (i, j) = (e, (e + 1) % 3);
+        seg_tri(&t1[i], &t1[j], s1[i], s1[j], t2, k2)
+            || seg_tri(&t2[i], &t2[j], s2[i], s2[j], t1, k1)
+    })
+}
+
+/// A triangle's vertices and projection axis.
+#[derive(Clone, Copy)]
+pub(super) struct Tri<'a> {
+    pub(super) idx: [u32; 3],
+    pub(super) k: usize,
+    pub(super) v: &'a [Vec3],
+}
+
+impl Tri<'_> {
+    #[inline]
+    pub(super) fn p(&self, i: usize) -> P {
+        pt(self.v[self.idx[i] as usize])
+    }
+    #[inline]
+    pub(super) fn pts(&self) -> [P; 3] {
+        [self.p(0), self.p(1), self.p(2)]
+    }
+}
+
+/// Whether two proper triangles intersect improperly (see the module documentation).
+pub(super) fn improper(a: Tri<'_>, b: Tri<'_>) -> bool {
+    // ma, mb: which corners are shared.
+    let (mut ma, mut mb, mut n) = (0u8, 0u8, 0u8);
+    for i in 0..3 {
+        for j in 0..3 {
+            if a.idx[i] == b.idx[j] {
+                ma |= 1 << i;
+                mb |= 1 << j;
+                n += 1;
+            }
+        }
+    }
+    match n {
+        0 => tri_tri(&a.pts(), &b.pts(), a.k, b.k),
+        1 => {
+            // Rotate each so that corner 0 is the shared vertex.
+            let ra = rotated(a, ma.trailing_zeros() as usize);
+            let rb = rotated(b, mb.trailing_zeros() as usize);
+            let sa = [
+                0,
+                orient3d(&rb[0], &rb[1], &rb[2], &ra[1]),
+                orient3d(&rb[0], &rb[1], &rb[2], &ra[2]),
+            ];
+            if seg_tri(&ra[1], &ra[2], sa[1], sa[2], &rb, b.k) {
+                return true;
+            }
+            let sb = [
+                0,
+                orient3d(&ra[0], &ra[1], &ra[2], &rb[1]),
+                orient3d(&ra[0], &ra[1], &ra[2], &rb[2]),
+            ];
+            seg_tri(&rb[1], &rb[2], sb[1], sb[2], &ra, a.k)
+        }
+        2 => {
+            // Corner 0 of each rotated one is the opposite vertex.
+            let ra = rotated(a, (!ma & 7).trailing_zeros() as usize);
+            let q = b.p((!mb & 7).trailing_zeros() as usize);
+            let (u, v, p) = (&ra[1], &ra[2], &ra[0]);
+            orient3d(u, v, p, &q) == 0 && orient2d(u, v, p, a.k) == orient2d(u, v, &q, a.k)
+        }
+        _ => true,
+    }
+}
+
+/// The triangle's points rotated so that corner `first` comes first (orientation kept).
+#[inline]
+pub(super) fn rotated(t: Tri<'_>, first: usize) -> [P; 3] {
+    [t.p(first), t.p((first + 1) % 3), t.p((first + 2) % 3)]
+}
+
+/// A triangle's projection axis ([`NO_AXIS`] when it is not a proper triangle) and the exact
+/// signs of its normal's components (bit `k`: positive, bit `3 + k`: negative).
+pub(super) fn classify(vertices: &[Vec3], t: [u32; 3]) -> (u8, u8) {
+    let n = vertices.len();
+    if t.iter().any(|&i| i as usize >= n) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+        return (NO_AXIS, 0);
+    }
+    let [a, b, c] = t.map(|i| vertices[i as usize]);
+    if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+        return (NO_AXIS, 0);
+    }
+    let (a, b, c) = (pt(a), pt(b), pt(c));
+    let mut signs = 0u8;
+    for k in 0..3 {
+        match orient2d(&a, &b, &c, k) {
+            1 => signs |= 1 << k,
+            -1 => signs |= 8 << k,
+            _ => {}
+        }
+    }
+    if signs == 0 {
+        return (NO_AXIS, 0);
+    }
+    // Among the exactly non-zero components, the largest (best-conditioned projection).
+    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let nrm = [
+        (u[1] * w[2] - u[2] * w[1]).abs(),
+        (u[2] * w[0] - u[0] * w[2]).abs(),
+        (u[0] * w[1] - u[1] * w[0]).abs(),
+    ];
+    let k = (0..3)
+        .filter(|&k| signs & (9 << k) != 0)
+        .max_by(|&x, &y| nrm[x].total_cmp(&nrm[y]))
+        .unwrap_or(0);
+    (k as u8, signs)
+}

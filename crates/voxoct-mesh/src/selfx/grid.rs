@@ -1,0 +1,360 @@
+//! The candidate-pair grid of the search: triangles' cells hashed by Morton code into
+//! buckets, each pair found once.
+
+use voxoct_core::glam::{Vec3, Vec3A};
+
+use super::*;
+
+/// Spreads the low 21 bits of `x` to every third bit.
+#[inline]
+pub(super) fn spread(x: u32) -> u64 {
+    let mut x = u64::from(x) & 0x1f_ffff;
+    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
+    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
+    x
+}
+
+/// The bits of one axis in a Morton code.
+pub(super) const DILATED: u64 = 0x1249_2492_4924_9249;
+
+#[inline]
+pub(super) fn morton(c: [u32; 3]) -> u64 {
+    spread(c[0]) | (spread(c[1]) << 1) | (spread(c[2]) << 2)
+}
+
+/// Grid cells per axis at most (Morton codes hold 21 bits per axis).
+pub(super) const MAX_CELLS: f32 = (1 << 20) as f32;
+/// Cell edge in mean triangle extents (fewest candidate pairs on scanned meshes).
+pub(super) const CELL_FACTOR: f64 = 1.5;
+/// Buckets per parallel task of the pair search (the result does not depend on it).
+pub(super) const BUCKETS_PER_TASK: usize = 4096;
+
+/// The candidate-pair grid. Every indexed triangle has an entry in each cell its box meets,
+/// with flags saying along which axes that cell is the triangle's first. Cells are hashed
+/// into buckets by their Morton code (nearby cells, nearby buckets). Two boxes that overlap
+/// have exactly one cell whose every coordinate is the first cell of one of them (the cell
+/// of the overlap's minimum corner): the pair is tested only there, from the entries whose
+/// flags together cover all three axes.
+pub(super) struct Index {
+    pub(super) origin: Vec3A,
+    pub(super) inv: f32,
+    pub(super) dims: [u32; 3],
+    pub(super) mask: u64,
+    pub(super) start: Vec<u32>,
+    pub(super) items: Vec<u32>,
+    pub(super) flags: Vec<u8>,
+}
+
+impl Index {
+    /// Indexes the `boxes` of the triangles that `include` accepts.
+    #[inline(never)]
+    pub(super) fn build(boxes: &[[Vec3A; 2]], include: impl Fn(usize) -> bool + Sync) -> Self {
+        let mut lo = Vec3A::splat(f32::INFINITY);
+        let mut hi = Vec3A::splat(f32::NEG_INFINITY);
+        let mut sum = 0.0f64;
+        let mut n = 0usize;
+        for (t, b) in boxes.iter().enumerate() {
+            if include(t) && b[0].is_finite() && b[1].is_finite() {
+                lo = lo.min(b[0]);
+                hi = hi.max(b[1]);
+                sum += f64::from((b[1] - b[0]).max_element());
+                n += 1;
+            }
+        }
+        let mut index = Self {
+            origin: Vec3A::ZERO,
+            inv: 1.0,
+            dims: [1; 3],
+            mask: 0,
+            start: vec![0, 0],
+            items: Vec::new(),
+            flags: Vec::new(),
+        };
+        if n == 0 {
+            return index;
+        }
+        let extent = (hi - lo).max_element();
+        let mut h = (CELL_FACTOR * sum / n as f64) as f32;
+        if !(h.is_finite() && h > 0.0) || extent / h > MAX_CELLS - 2.0 {
+            h = (extent / (MAX_CELLS - 2.0)).max(f32::MIN_POSITIVE);
+        }
+        index.origin = lo;
+        index.inv = 1.0 / h;
+        index.dims = ((hi - lo) * index.inv)
+            .to_array()
+            .map(|d| (d as u32).saturating_add(1).min(MAX_CELLS as u32));
+        let ranges: Vec<[[u32; 3]; 2]> =
+            crate::par::map(boxes, |b| [index.cell(b[0]), index.cell(b[1])]);
+        let total: usize = ranges
+            .iter()
+            .enumerate()
+            .filter(|&(t, _)| include(t))
+            .map(|(_, r)| {
+                (0..3)
+                    .map(|i| (r[1][i] - r[0][i] + 1) as usize)
+                    .product::<usize>()
+            })
+            .sum();
+        let buckets = (total.next_power_of_two() / 2).max(1);
+        index.mask = buckets as u64 - 1;
+        let mask = index.mask;
+        let mut start = vec![0u32; buckets + 1];
+        for_each_cell(&ranges, &include, |_, m, _| {
+            start[(m & mask) as usize + 1] += 1;
+        });
+        for i in 0..buckets {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut items = vec![0u32; total];
+        let mut flags = vec![0u8; total];
+        for_each_cell(&ranges, &include, |t, m, f| {
+            let b = (m & mask) as usize;
+            let k = fill[b] as usize;
+            items[k] = t;
+            flags[k] = f;
+            fill[b] += 1;
+        });
+        index.start = start;
+        index.items = items;
+        index.flags = flags;
+        index
+    }
+
+    /// The grid cell of point `p` (clamped to the grid).
+    #[inline]
+    pub(super) fn cell(&self, p: Vec3A) -> [u32; 3] {
+        let g = (p - self.origin) * self.inv;
+        [
+            (g.x.max(0.0) as u32).min(self.dims[0] - 1),
+            (g.y.max(0.0) as u32).min(self.dims[1] - 1),
+            (g.z.max(0.0) as u32).min(self.dims[2] - 1),
+        ]
+    }
+
+    /// Both triangles of every improper pair among the proper triangles whose current boxes
+    /// overlap; with `dirty = (triangles, flags)`, only the pairs with a dirty member (the
+    /// indexed boxes must contain the current ones).
+    pub(super) fn pairs(
+        &self,
+        ck: &Checker<'_>,
+        vertices: &[Vec3],
+        dirty: Option<(&[u32], &[bool])>,
+    ) -> Vec<u32> {
+        let visit: Vec<u32> = match dirty {
+            None => Vec::new(),
+            Some((tris, _)) => {
+                // The buckets of the dirty triangles' indexed ranges: the cell where a pair
+                // is tested lies in both triangles' indexed ranges.
+                let indexed = ck.index_boxes.as_ref().unwrap_or(&ck.boxes);
+                let mut v = Vec::new();
+                for &t in tris {
+                    let b = indexed[t as usize];
+                    let (lo, hi) = (self.cell(b[0]), self.cell(b[1]));
+                    for z in lo[2]..=hi[2] {
+                        for y in lo[1]..=hi[1] {
+                            for x in lo[0]..=hi[0] {
+                                v.push((morton([x, y, z]) & self.mask) as u32);
+                            }
+                        }
+                    }
+                }
+                v.sort_unstable();
+                v.dedup();
+                v
+            }
+        };
+        let count = if dirty.is_some() {
+            visit.len()
+        } else {
+            self.start.len() - 1
+        };
+        let one = |task: usize, out: &mut Vec<u32>| {
+            let mut scratch = Scratch::default();
+            let range = task * BUCKETS_PER_TASK..((task + 1) * BUCKETS_PER_TASK).min(count);
+            let d = dirty.map(|d| d.1);
+            if dirty.is_some() {
+                for &b in &visit[range] {
+                    self.bucket_pairs(ck, vertices, d, b as usize, &mut scratch, out);
+                }
+            } else {
+                for b in range {
+                    self.bucket_pairs(ck, vertices, d, b, &mut scratch, out);
+                }
+            }
+        };
+        let mut out = Vec::new();
+        crate::par::extend_in_order(&mut out, count.div_ceil(BUCKETS_PER_TASK), 1, one);
+        out
+    }
+
+    /// The improper pairs owned by the cells of bucket `b` (see [`Self::pairs`]).
+    #[inline(never)]
+    pub(super) fn bucket_pairs(
+        &self,
+        ck: &Checker<'_>,
+        vertices: &[Vec3],
+        dirty: Option<&[bool]>,
+        b: usize,
+        scratch: &mut Scratch,
+        out: &mut Vec<u32>,
+    ) {
+        let (s, e) = (self.start[b] as usize, self.start[b + 1] as usize);
+        if e - s < 2 {
+            return;
+        }
+        let (items, flags) = (&self.items[s..e], &self.flags[s..e]);
+        let is_dirty = |t: u32| dirty.is_none_or(|d| d[t as usize]);
+        let test = |ti: u32, tj: u32, out: &mut Vec<u32>| {
+            if ti == tj || !(is_dirty(ti) || is_dirty(tj)) {
+                return;
+            }
+            let (a, c) = (ck.triangles[ti as usize], ck.triangles[tj as usize]);
+            let a = Tri {
+                idx: a,
+                k: ck.facts[ti as usize].0 as usize,
+                v: vertices,
+            };
+            let c = Tri {
+                idx: c,
+                k: ck.facts[tj as usize].0 as usize,
+                v: vertices,
+            };
+            if improper(a, c) {
+                out.push(ti);
+                out.push(tj);
+            }
+        };
+        let overlap = |p: &[Vec3A; 2], q: &[Vec3A; 2]| (p[0].cmple(q[1]) & q[0].cmple(p[1])).all();
+        // The bucket's proper entries, their flags and boxes together, 64 at a time; `has[r]`:
+        // the entries of a block whose flags include the axes `r`.
+        // `cv`: the triangle's certified vertices (others `u32::MAX`): a pair that shares one
+        // needs no test.
+        let Scratch { id, fl, bx, cv } = scratch;
+        let mut n = 0;
+        for (&t, &f) in items.iter().zip(flags) {
+            if ck.facts[t as usize].0 != NO_AXIS {
+                if n == id.len() {
+                    id.resize(n + BLOCK, 0);
+                    fl.resize(n + BLOCK, 0);
+                    bx.resize(n + BLOCK, [Vec3A::ZERO; 2]);
+                    cv.resize(n + BLOCK, [0; 3]);
+                }
+                id[n] = t;
+                fl[n] = f;
+                bx[n] = ck.boxes[t as usize];
+                cv[n] = ck.triangles[t as usize].map(|v| {
+                    if ck.cert.get(v as usize).copied().unwrap_or(false) {
+                        v
+                    } else {
+                        u32::MAX
+                    }
+                });
+                n += 1;
+            }
+        }
+        let (id, fl, bx, cv) = (&id[..n], &fl[..n], &bx[..n], &cv[..n]);
+        for base in (0..n).step_by(BLOCK) {
+            let end = (base + BLOCK).min(n);
+            // By exact flags, then (summing over supersets) by included axes.
+            let mut has = [0u64; 8];
+            for (k, &f) in fl[base..end].iter().enumerate() {
+                has[usize::from(f & 7)] |= 1 << k;
+            }
+            for bit in [1, 2, 4] {
+                for r in 0..8 {
+                    if r & bit == 0 {
+                        has[r] |= has[r | bit];
+                    }
+                }
+            }
+            let block = &bx[base..end];
+            for (x, (bxx, &fx)) in bx[..end].iter().zip(&fl[..end]).enumerate() {
+                // Partners in this block that come after x.
+                let mut m = has[usize::from(7 & !fx)];
+                if x >= base {
+                    m &= (!0u64 << (x - base)) << 1;
+                }
+                while m != 0 {
+                    let y = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if let Some(by) = block.get(y)
+                        && overlap(bxx, by)
+                        && !shares_certified(cv[x], cv[base + y])
+                    {
+                        test(id[x], id[base + y], out);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Entries per block of the pair loop (one bit each in a `u64`).
+pub(super) const BLOCK: usize = 64;
+
+/// Reused buffers of [`Index::bucket_pairs`].
+#[derive(Default)]
+pub(super) struct Scratch {
+    pub(super) id: Vec<u32>,
+    pub(super) fl: Vec<u8>,
+    pub(super) bx: Vec<[Vec3A; 2]>,
+    pub(super) cv: Vec<[u32; 3]>,
+}
+
+/// Morton codes of the cells of every included triangle's range, with the triangle and the
+/// cell's flags (bit `k`: the cell is the range's first along axis `k`).
+#[inline(never)]
+pub(super) fn for_each_cell(
+    ranges: &[[[u32; 3]; 2]],
+    include: impl Fn(usize) -> bool,
+    mut f: impl FnMut(u32, u64, u8),
+) {
+    for (t, r) in ranges.iter().enumerate() {
+        if !include(t) {
+            continue;
+        }
+        // Morton codes stepped in place: adding one to the bits of one axis.
+        let step = |d: u64, axis: u32| {
+            let m = DILATED << axis;
+            ((d | !m).wrapping_add(1 << axis)) & m
+        };
+        let mut mz = spread(r[0][2]) << 2;
+        let mut fz = 4u8;
+        let mut z = r[0][2];
+        loop {
+            let mut my = spread(r[0][1]) << 1;
+            let mut fy = fz | 2;
+            let mut y = r[0][1];
+            loop {
+                let mut mx = spread(r[0][0]);
+                let mut fx = fy | 1;
+                let mut x = r[0][0];
+                loop {
+                    f(t as u32, mz | my | mx, fx);
+                    if x >= r[1][0] {
+                        break;
+                    }
+                    x += 1;
+                    mx = step(mx, 0);
+                    fx = fy;
+                }
+                if y >= r[1][1] {
+                    break;
+                }
+                y += 1;
+                my = step(my, 1);
+                fy = fz;
+            }
+            if z >= r[1][2] {
+                break;
+            }
+            z += 1;
+            mz = step(mz, 2);
+            fz = 0;
+        }
+    }
+}

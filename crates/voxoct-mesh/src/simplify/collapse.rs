@@ -1,0 +1,421 @@
+//! One round of collapses: candidates per pass, their order, and the checks that keep the
+//! mesh a closed, embedded manifold.
+
+use voxoct_core::glam::{DVec3, Vec3};
+
+use super::*;
+use crate::fans::VertexFans;
+use crate::par;
+
+/// Smallest cosine between a new triangle's normal and the old fan's mean normal.
+pub(super) const FAN_COS_MIN: f32 = 0.5;
+
+/// One candidate collapse of a pass.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Candidate {
+    /// Sort key: the error²'s float bits.
+    pub(super) key: u32,
+    pub(super) u: u32,
+    pub(super) w: u32,
+    pub(super) p: Vec3,
+}
+
+/// Bits dropped from the sort key by the counting sort: classes of a factor 256 in error²
+/// (16 in error). Coarse classes are visited in memory order, which is faster by a third
+/// than finer ones (cache misses) and changes the result by well under 1 %.
+pub(super) const KEY_SHIFT: u32 = 26;
+
+/// The state of one simplification round.
+pub(super) struct Collapser<'a> {
+    pub(super) pos: Vec<Vec3>,
+    pub(super) tris: Vec<[u32; 3]>,
+    pub(super) quad: Vec<Quadric>,
+    /// Area-weighted normal of the original triangles merged into each vertex.
+    pub(super) nrm: Vec<Vec3>,
+    /// `parent[v] == v` for a live vertex, else the vertex it collapsed into.
+    pub(super) parent: Vec<u32>,
+    /// Whether the vertex survived a collapse (its position and fan changed).
+    pub(super) moved: Vec<bool>,
+    pub(super) frozen: &'a [bool],
+    pub(super) locked: Vec<bool>,
+    /// Vertices whose edges are evaluated this pass: all in the first, then those whose
+    /// neighbourhood changed in the last pass or whose edge was skipped for a lock.
+    pub(super) active: Vec<bool>,
+    pub(super) next_active: Vec<bool>,
+    pub(super) csr: VertexFans,
+    pub(super) origin: DVec3,
+    pub(super) max_sq: f64,
+    pub(super) target: usize,
+    pub(super) passes: usize,
+    pub(super) collapses: usize,
+    pub(super) ring_u: Vec<u32>,
+    pub(super) ring_w: Vec<u32>,
+    pub(super) normals: Vec<(Vec3, u32, u32)>,
+}
+
+impl<'a> Collapser<'a> {
+    pub(super) fn new(
+        mesh: &Mesh,
+        quadrics: &[(Quadric, Vec3)],
+        frozen: &'a [bool],
+        opts: &Simplify,
+    ) -> Self {
+        let nv = mesh.vertices.len();
+        Self {
+            pos: mesh.vertices.clone(),
+            tris: mesh.triangles.clone(),
+            quad: quadrics.iter().map(|q| q.0).collect(),
+            nrm: quadrics.iter().map(|q| q.1).collect(),
+            parent: (0..nv as u32).collect(),
+            moved: vec![false; nv],
+            frozen,
+            locked: vec![false; nv],
+            active: vec![true; nv],
+            next_active: vec![false; nv],
+            csr: VertexFans::default(),
+            origin: origin(mesh),
+            max_sq: f64::from(opts.max_error) * f64::from(opts.max_error),
+            target: opts.target_triangles.unwrap_or(0),
+            passes: 0,
+            collapses: 0,
+            ring_u: Vec::new(),
+            ring_w: Vec::new(),
+            normals: Vec::new(),
+        }
+    }
+
+    pub(super) fn run(&mut self) {
+        let mut cands = Vec::new();
+        let mut sorted = Vec::new();
+        while self.tris.len() > self.target {
+            self.passes += 1;
+            self.csr.rebuild(self.pos.len(), &self.tris, |_| true, true);
+            self.candidates(&mut cands);
+            counting_sort(&cands, &mut sorted);
+            let made = self.collapse_pass(&sorted);
+            if made == 0 {
+                break;
+            }
+            std::mem::swap(&mut self.active, &mut self.next_active);
+            self.next_active.iter_mut().for_each(|a| *a = false);
+            self.collapses += made;
+            self.tris
+                .retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+        }
+    }
+
+    /// Every edge's best collapse within the error bound.
+    pub(super) fn candidates(&self, out: &mut Vec<Candidate>) {
+        out.clear();
+        let tris = &self.tris;
+        par::extend_in_order(out, tris.len(), 4096, |i, out| {
+            let t = tris[i];
+            for k in 0..3 {
+                let (u, w) = (t[k], t[(k + 1) % 3]);
+                if u < w
+                    && (self.active[u as usize] || self.active[w as usize])
+                    && !self.frozen[u as usize]
+                    && !self.frozen[w as usize]
+                    && let Some(c) = self.cost(u, w)
+                {
+                    out.push(c);
+                }
+            }
+        });
+    }
+
+    /// The collapse of edge `u w`: position and error², if within the bound.
+    pub(super) fn cost(&self, u: u32, w: u32) -> Option<Candidate> {
+        let q = Quadric::sum(&self.quad[u as usize], &self.quad[w as usize]);
+        let pu = self.pos[u as usize].as_dvec3() - self.origin;
+        let pw = self.pos[w as usize].as_dvec3() - self.origin;
+        let m = 0.5 * (pu + pw);
+        let reach_sq = (pu - pw).length_squared();
+        let mut best = q
+            .minimum(m)
+            .filter(|x| (*x - m).length_squared() <= reach_sq);
+        let mut err = best.map_or(f64::INFINITY, |x| q.mean_sq(x));
+        if best.is_none() {
+            for x in [m, pu, pw] {
+                let e = q.mean_sq(x);
+                if e < err {
+                    (best, err) = (Some(x), e);
+                }
+            }
+        }
+        let x = best?;
+        (err <= self.max_sq).then(|| Candidate {
+            key: (err as f32).to_bits(),
+            u,
+            w,
+            p: (x + self.origin).as_vec3(),
+        })
+    }
+
+    /// Collapses greedily in the given order; returns the number made.
+    pub(super) fn collapse_pass(&mut self, sorted: &[Candidate]) -> usize {
+        self.locked.iter_mut().for_each(|l| *l = false);
+        let mut made = 0;
+        let mut live = self.tris.len();
+        for c in sorted {
+            if live <= self.target {
+                break;
+            }
+            if self.locked[c.u as usize] || self.locked[c.w as usize] {
+                self.next_active[c.u as usize] = true;
+                self.next_active[c.w as usize] = true;
+                continue;
+            }
+            if !self.allowed(c.u, c.w, c.p) {
+                continue;
+            }
+            let (u, w) = (c.u as usize, c.w as usize);
+            self.parent[u] = c.w;
+            for i in self.csr.start[u]..self.csr.start[u + 1] {
+                let t = &mut self.tris[self.csr.tris[i as usize] as usize];
+                for k in t.iter_mut() {
+                    if *k == c.u {
+                        *k = c.w;
+                    }
+                }
+            }
+            // The fans of u's neighbours (and w's own) now see w where they saw u; the
+            // collapsed edge's two triangles become degenerate there and are skipped.
+            for &x in &self.ring_u {
+                for i in self.csr.range(x) {
+                    for k in &mut self.csr.pairs[i] {
+                        if *k == c.u {
+                            *k = c.w;
+                        }
+                    }
+                }
+            }
+            self.pos[w] = c.p;
+            let qu = self.quad[u];
+            self.quad[w].add(&qu);
+            let nu = self.nrm[u];
+            self.nrm[w] += nu;
+            self.locked[u] = true;
+            self.locked[w] = true;
+            self.next_active[w] = true;
+            for &x in self.ring_u.iter().chain(&self.ring_w) {
+                self.next_active[x as usize] = true;
+            }
+            self.moved[w] = true;
+            made += 1;
+            live -= 2;
+        }
+        made
+    }
+
+    /// The live corners of `v`: (next, previous) of each triangle of `v` that no collapse
+    /// of this pass removed.
+    #[inline]
+    pub(super) fn live_corners(&self, v: u32) -> impl Iterator<Item = [u32; 2]> + '_ {
+        self.csr
+            .corners(v)
+            .iter()
+            .copied()
+            .filter(move |&[n, p]| n != p && n != v && p != v)
+    }
+
+    /// Whether collapsing `u w` to `p` keeps the guarantees (link condition, normals,
+    /// quality).
+    pub(super) fn allowed(&mut self, u: u32, w: u32, p: Vec3) -> bool {
+        let mut ring_u = std::mem::take(&mut self.ring_u);
+        let mut ring_w = std::mem::take(&mut self.ring_w);
+        let mut normals = std::mem::take(&mut self.normals);
+        normals.clear();
+        let mut old_sum = Vec3::ZERO;
+        let ok = self.ring(u, &mut ring_u)
+            && self.ring(w, &mut ring_w)
+            && link_condition(w, &ring_u, &ring_w)
+            && self.shapes_ok(u, w, p, &mut normals, &mut old_sum)
+            && self.shapes_ok(w, u, p, &mut normals, &mut old_sum)
+            && {
+                // The new fan stays on the side the old one faced (no fold within the fan).
+                let len = old_sum.length();
+                let mut flat = true;
+                let ok = normals.iter().all(|n| {
+                    let (d, l) = (n.0.dot(old_sum), len * n.0.length());
+                    flat &= d > FLAT_COS * l;
+                    d > FAN_COS_MIN * l
+                });
+                // A nearly flat new fan cannot fold onto its neighbours unless they were
+                // already folded; the global test catches what this skips.
+                ok && (flat || self.no_local_folds(u, w, p, &normals))
+            };
+        self.ring_u = ring_u;
+        self.ring_w = ring_w;
+        self.normals = normals;
+        ok
+    }
+
+    /// The neighbours of `v` (each once on a closed manifold); false if unusually many.
+    pub(super) fn ring(&self, v: u32, out: &mut Vec<u32>) -> bool {
+        out.clear();
+        out.extend(self.live_corners(v).map(|[n, _]| n));
+        out.len() >= 3
+    }
+
+    /// Whether moving `v` to `p` keeps the normal and quality of every triangle of `v` that
+    /// does not also hold `other`.
+    pub(super) fn shapes_ok(
+        &self,
+        v: u32,
+        other: u32,
+        p: Vec3,
+        normals: &mut Vec<(Vec3, u32, u32)>,
+        old_sum: &mut Vec3,
+    ) -> bool {
+        let cos_min = MAX_NORMAL_TURN_DEG.to_radians().cos();
+        for [bi, ci] in self.live_corners(v) {
+            if bi == other || ci == other {
+                continue;
+            }
+            let b = self.pos[bi as usize];
+            let c = self.pos[ci as usize];
+            let a = self.pos[v as usize];
+            let n_old = (b - a).cross(c - a);
+            let n_new = (b - p).cross(c - p);
+            let (lo, ln) = (n_old.length(), n_new.length());
+            // Never against the original surface: the new triangle faces the way the
+            // original triangles merged into its corners face on the whole.
+            let reference = self.nrm[v as usize]
+                + self.nrm[other as usize]
+                + self.nrm[bi as usize]
+                + self.nrm[ci as usize];
+            if !greater(
+                n_new.dot(reference),
+                REFERENCE_COS_MIN * ln * reference.length(),
+            ) {
+                return false;
+            }
+            *old_sum += n_old;
+            normals.push((n_new, bi, ci));
+            if !greater(n_old.dot(n_new), cos_min * lo * ln) {
+                return false;
+            }
+            let q_new = quality(ln, p, b, c);
+            if q_new < MIN_QUALITY_ABSOLUTE || (q_new < MIN_QUALITY && q_new < quality(lo, a, b, c))
+            {
+                return false;
+            }
+        }
+        true
+    }
+}
+
+impl Collapser<'_> {
+    /// Whether the new fan (`p` with the given outer edges and normals) stays clear of the
+    /// other triangles around its outer vertices: every such pair facing away from each
+    /// other is tested exactly (pairs sharing an outer edge must not fold flat).
+    pub(super) fn no_local_folds(&self, u: u32, w: u32, p: Vec3, fan: &[(Vec3, u32, u32)]) -> bool {
+        let pd = p.as_dvec3();
+        let at = |k: u32| self.pos[k as usize].as_dvec3();
+        // Each outer vertex once (as the first vertex of its outgoing outer edge).
+        for &(_, x, _) in fan {
+            for [n, q] in self.live_corners(x) {
+                let tt = [x, n, q];
+                if tt.contains(&u) || tt.contains(&w) {
+                    continue;
+                }
+                let [a0, a1, a2] = tt.map(|k| self.pos[k as usize]);
+                let nt = (a1 - a0).cross(a2 - a0);
+                for &(nn, b, c) in fan {
+                    if b != x && c != x || nn.dot(nt) >= 0.0 {
+                        continue;
+                    }
+                    let shared_edge = tt.contains(&b) && tt.contains(&c);
+                    if shared_edge {
+                        if nn.dot(nt) < -FOLD_COS * nn.length() * nt.length() {
+                            return false;
+                        }
+                        continue;
+                    }
+                    let tri_new = [pd, at(b), at(c)];
+                    let tri_old = tt.map(at);
+                    let kx = tt.iter().position(|&k| k == x).unwrap_or(0);
+                    let (o1, o2) = (tri_old[(kx + 1) % 3], tri_old[(kx + 2) % 3]);
+                    let (n1, n2) = if b == x { (pd, at(c)) } else { (pd, at(b)) };
+                    if crate::collide::segment_triangle(o1, o2, tri_new)
+                        || crate::collide::segment_triangle(n1, n2, tri_old)
+                    {
+                        return false;
+                    }
+                }
+            }
+        }
+        true
+    }
+}
+
+/// Cosine (≈ 20°) above which every new triangle of a fan counts as flat with the old fan,
+/// so the fold test against the neighbours is skipped.
+pub(super) const FLAT_COS: f32 = 0.94;
+
+/// Smallest cosine between a new triangle's normal and the summed original normals of
+/// the clusters at its corners.
+pub(super) const REFERENCE_COS_MIN: f32 = 0.5;
+
+/// Cosine beyond which two triangles sharing an edge count as folded flat onto each other.
+pub(super) const FOLD_COS: f32 = 0.95;
+
+/// `a > b`, false when either is NaN (so a NaN never passes a check).
+#[inline]
+pub(super) fn greater<T: PartialOrd>(a: T, b: T) -> bool {
+    a > b
+}
+
+/// `4√3·area / Σ edge²` with `cross_len = 2·area`.
+#[inline]
+pub(super) fn quality(cross_len: f32, a: Vec3, b: Vec3, c: Vec3) -> f32 {
+    let s = (b - a).length_squared() + (c - b).length_squared() + (a - c).length_squared();
+    if s > 0.0 {
+        2.0 * 3f32.sqrt() * cross_len / s
+    } else {
+        0.0
+    }
+}
+
+/// The link condition for a closed manifold: `u` and `w` share exactly two neighbours, and
+/// are not both of valence 3 (a tetrahedron would fold onto itself).
+pub(super) fn link_condition(w: u32, ring_u: &[u32], ring_w: &[u32]) -> bool {
+    if ring_u.len() == 3 && ring_w.len() == 3 {
+        return false;
+    }
+    let mut common = 0;
+    for &x in ring_u {
+        if x != w && ring_w.contains(&x) {
+            common += 1;
+        }
+    }
+    common == 2
+}
+
+/// Orders candidates by the leading bits of their key (a counting sort: stable, linear).
+pub(super) fn counting_sort(cands: &[Candidate], out: &mut Vec<Candidate>) {
+    const BUCKETS: usize = 1 << (32 - KEY_SHIFT - 1);
+    let mut count = [0u32; BUCKETS + 1];
+    for c in cands {
+        count[(c.key >> KEY_SHIFT) as usize + 1] += 1;
+    }
+    for i in 0..BUCKETS {
+        count[i + 1] += count[i];
+    }
+    out.clear();
+    out.resize(
+        cands.len(),
+        Candidate {
+            key: 0,
+            u: 0,
+            w: 0,
+            p: Vec3::ZERO,
+        },
+    );
+    for c in cands {
+        let slot = &mut count[(c.key >> KEY_SHIFT) as usize];
+        out[*slot as usize] = *c;
+        *slot += 1;
+    }
+}

@@ -1,0 +1,277 @@
+//! Quadric-error edge collapse (Garland–Heckbert) that keeps the mesh a closed, oriented,
+//! embedded 2-manifold.
+//!
+//! # Error measure
+//! Every original triangle contributes its plane, weighted by a third of its area, to each of
+//! its three vertices' quadrics; a collapse adds the two quadrics. The *error* of a vertex at
+//! `p` is `sqrt(Q(p) / W)`: the area-weighted root-mean-square distance, in metres, from `p`
+//! to the planes of the original triangles that were merged into it (`W` is their weight).
+//! A collapse is made only while that error is at most [`Simplify::max_error`]. The new
+//! vertex goes to the quadric's minimum, regularised towards the edge's midpoint along the
+//! directions the quadric leaves free (flat or cylindrical patches), so vertices never
+//! slide along the surface.
+//!
+//! Because the bound is a mean over the merged patch, a vertex may sit further than
+//! `max_error` from the original surface where the patch is curved or cornered; the tests
+//! check every vertex within three times the bound (and on a 30 mm sphere at 1 mm leaves,
+//! `for_leaf` keeps the mean vertex 0.22 leaf, the worst 0.37 leaf from the sphere).
+//!
+//! # Guarantees (for a closed, oriented 2-manifold input, as [`crate::mesh_cells`] gives)
+//! - **Link condition**: an edge `u w` collapses only if `u` and `w` have exactly two common
+//!   neighbours (the apexes of its two triangles) and are not both of valence 3 (a
+//!   tetrahedron), so the result stays a closed 2-manifold with the same pieces and genus.
+//!   [`Mesh::check_closed_manifold`] is run on the result as a safety net: a failure (never
+//!   seen) leaves the input unchanged.
+//! - **No flips, no needles**: every triangle changed by a collapse keeps its normal within
+//!   [`MAX_NORMAL_TURN_DEG`] of its direction before; within 60° of the mean normal of the
+//!   fan it replaces; within 60° of the summed original normals of the clusters at its
+//!   corners (so turns cannot add up over many collapses); and its shape quality
+//!   (`4√3·area / Σ edge²`, 1 for an equilateral) does not fall below [`MIN_QUALITY`] unless
+//!   it was already that low, and never below [`MIN_QUALITY_ABSOLUTE`].
+//! - **No self-intersections introduced**: each collapse tests the new fan exactly against
+//!   the other triangles around its outer vertices (the local folds). Then one exact test
+//!   over all pairs of nearby triangles (a uniform grid; `f64` orientation tests) looks for
+//!   intersecting pairs with a changed triangle, which only distant sheets (thin walls) or
+//!   a crumpled input can give. If there are any, the original vertices merged into those
+//!   triangles and their neighbours are frozen and the simplification is run again from the
+//!   input; after [`MAX_RETRIES`] rounds the input is left unchanged. Intersections the
+//!   input already had are left as they are (their triangles do not count as changed).
+//!
+//! # Speed
+//! Collapses are made in passes (as meshoptimizer does): each pass evaluates the collapse
+//! cost of every edge whose neighbourhood changed (in parallel with the `parallel`
+//! feature), orders the edges by cost with a counting sort on the float's exponent bits
+//! (coarse classes keep memory access local), and collapses greedily in that order, at most
+//! one collapse per vertex per pass; vertex→triangle adjacency is a flat CSR rebuilt per
+//! pass. No hash map, no heap. A marched, smoothed input that already intersects itself
+//! in a few places takes two rounds. Figures: see BENCHMARKS.md (`cargo bench -p
+//! voxoct-mesh`).
+
+use crate::mesh::{Mesh, TopologyError};
+
+mod collapse;
+mod quadric;
+
+use collapse::*;
+use quadric::*;
+
+/// Largest turn of a surviving triangle's normal in one collapse, degrees.
+pub const MAX_NORMAL_TURN_DEG: f32 = 75.0;
+/// Triangle quality (`4√3·area / Σ edge²`) below which a collapse may not push a triangle,
+/// unless the triangle was already worse.
+pub const MIN_QUALITY: f32 = 0.1;
+/// Quality below which no collapse may ever push a triangle (far above the degeneracy
+/// threshold of [`Mesh::check_closed_manifold`]).
+pub const MIN_QUALITY_ABSOLUTE: f32 = 1.0e-3;
+/// Rounds of freezing and re-running when the global self-intersection test fails.
+pub const MAX_RETRIES: u32 = 4;
+
+/// Options of [`simplify`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Simplify {
+    /// Largest error of a collapse, metres: the area-weighted root-mean-square distance from
+    /// the new vertex to the planes of the original triangles merged into it. 0 collapses
+    /// only edges of flat patches.
+    pub max_error: f32,
+    /// Stop once the mesh has at most this many triangles (`None`: as few as `max_error`
+    /// allows). The error bound holds either way.
+    pub target_triangles: Option<usize>,
+}
+
+impl Simplify {
+    /// Default error bound as a fraction of the leaf edge.
+    ///
+    /// A quarter of a leaf: the marked-cell surface cannot place detail more finely than
+    /// about half a leaf, and a Kinect v1's depth noise (≈ 1.5 mm at 0.7 m) is larger
+    /// than a 1 mm leaf, so a deviation of a quarter leaf (RMS over the merged patch) removes
+    /// no detail the data holds.
+    pub const LEAF_FRACTION: f32 = 0.25;
+
+    /// The default options for meshes of leaves of edge `leaf` metres:
+    /// `max_error = LEAF_FRACTION · leaf`, no triangle target.
+    #[must_use]
+    pub fn for_leaf(leaf: f32) -> Self {
+        Self {
+            max_error: Self::LEAF_FRACTION * leaf,
+            target_triangles: None,
+        }
+    }
+}
+
+/// What [`simplify`] did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SimplifyStats {
+    /// Triangles before.
+    pub triangles_before: usize,
+    /// Triangles after.
+    pub triangles_after: usize,
+    /// Edge collapses made (in the final round).
+    pub collapses: usize,
+    /// Collapse passes (in the final round).
+    pub passes: usize,
+    /// Rounds re-run because the global self-intersection test found new intersections.
+    pub retries: u32,
+    /// Original vertices frozen by those rounds.
+    pub frozen_vertices: usize,
+    /// Intersecting triangle pairs that involve a changed triangle, found by the last
+    /// global test (0 unless the input was left unchanged after [`MAX_RETRIES`] rounds).
+    pub new_intersections: usize,
+    /// Why the mesh was left unchanged: an index out of range, or the result is not a closed
+    /// manifold (the input was not one; for a closed input this never happens, it is a
+    /// safety net). `None` when simplified, and also when left unchanged because of invalid
+    /// options or [`MAX_RETRIES`].
+    pub skipped: Option<TopologyError>,
+}
+
+/// Simplifies a closed, oriented 2-manifold mesh in place by quadric-error edge collapse
+/// (see the module docs for the error measure and the guarantees).
+///
+/// A mesh whose result fails [`Mesh::check_closed_manifold`] (as one that is not a closed
+/// manifold to begin with may) is left unchanged, the error in [`SimplifyStats::skipped`];
+/// so is any mesh when `max_error` is negative or not finite.
+/// Otherwise the vertices are renumbered in the order the triangles first use them (also
+/// when no collapse could be made); triangles keep their relative order.
+pub fn simplify(mesh: &mut Mesh, opts: &Simplify) -> SimplifyStats {
+    let mut stats = SimplifyStats {
+        triangles_before: mesh.triangles.len(),
+        triangles_after: mesh.triangles.len(),
+        ..SimplifyStats::default()
+    };
+    if !(opts.max_error.is_finite() && opts.max_error >= 0.0) {
+        return stats;
+    }
+    // Indices in range are all the collapses need to run; whether the input is a closed
+    // manifold is decided by the check of the result, which leaves the input unchanged when
+    // it fails (the full check of a large input would cost a sixth of the time).
+    let nv = mesh.vertices.len();
+    if let Some((i, &k)) = mesh
+        .triangles
+        .iter()
+        .enumerate()
+        .find_map(|(i, t)| t.iter().find(|&&k| k as usize >= nv).map(|k| (i, k)))
+    {
+        stats.skipped = Some(TopologyError::IndexOutOfRange {
+            triangle: i,
+            index: k,
+        });
+        return stats;
+    }
+    if opts
+        .target_triangles
+        .is_some_and(|t| t >= mesh.triangles.len())
+    {
+        return stats;
+    }
+    let mut frozen = vec![false; nv];
+    let original = renumbered_by_first_use(mesh);
+    let quadrics = initial_quadrics(&original);
+    loop {
+        let mut work = Collapser::new(&original, &quadrics, &frozen, opts);
+        work.run();
+        let (passes, collapses) = (work.passes, work.collapses);
+        let Collapser {
+            pos,
+            tris,
+            parent,
+            moved,
+            ..
+        } = work;
+        let candidate = Mesh {
+            vertices: pos,
+            triangles: tris,
+        };
+        let bad = if collapses == 0 {
+            Vec::new()
+        } else {
+            new_intersections(&candidate, &moved)
+        };
+        stats.new_intersections = bad.len();
+        if bad.is_empty() {
+            let mut candidate = candidate;
+            candidate.remove_unused_vertices();
+            // The collapses keep the mesh closed by construction; this check (a few per cent
+            // of the time) makes sure that no rounding breaks the promise.
+            if let Err(e) = candidate.check_closed_manifold() {
+                stats.skipped = Some(e);
+                return stats;
+            }
+            *mesh = candidate;
+            stats.triangles_after = mesh.triangles.len();
+            stats.passes = passes;
+            stats.collapses = collapses;
+            return stats;
+        }
+        if stats.retries == MAX_RETRIES {
+            *mesh = original;
+            stats.triangles_after = mesh.triangles.len();
+            return stats;
+        }
+        stats.retries += 1;
+        // Freeze every original vertex merged into a vertex of an intersecting triangle or
+        // into one of their neighbours.
+        let mut hit = vec![false; nv];
+        for &t in &bad {
+            for k in candidate.triangles[t as usize] {
+                hit[k as usize] = true;
+            }
+        }
+        let mut near = hit.clone();
+        for t in &candidate.triangles {
+            if t.iter().any(|&k| hit[k as usize]) {
+                for &k in t {
+                    near[k as usize] = true;
+                }
+            }
+        }
+        let hit = near;
+        for (v, f) in frozen.iter_mut().enumerate() {
+            let mut r = v;
+            while parent[r] as usize != r {
+                r = parent[r] as usize;
+            }
+            if hit[r] && !*f {
+                *f = true;
+                stats.frozen_vertices += 1;
+            }
+        }
+    }
+}
+
+/// `mesh` with its vertices numbered in the order the triangles first use them, so that
+/// walking the triangles in order touches vertex data in order (the marcher numbers
+/// vertices by grid edge, far from its triangle order: this halves the time).
+fn renumbered_by_first_use(mesh: &Mesh) -> Mesh {
+    let mut map = vec![u32::MAX; mesh.vertices.len()];
+    let mut vertices = Vec::with_capacity(mesh.vertices.len());
+    let mut triangles = Vec::with_capacity(mesh.triangles.len());
+    for t in &mesh.triangles {
+        let mut out = [0u32; 3];
+        for (o, &k) in out.iter_mut().zip(t) {
+            let m = &mut map[k as usize];
+            if *m == u32::MAX {
+                *m = vertices.len() as u32;
+                vertices.push(mesh.vertices[k as usize]);
+            }
+            *o = *m;
+        }
+        triangles.push(out);
+    }
+    Mesh {
+        vertices,
+        triangles,
+    }
+}
+
+/// The changed triangles (with a moved vertex) that cut through another triangle, by the
+/// exact check ([`crate::selfx`]), in increasing order. Every new intersection involves a
+/// changed triangle; intersections between unchanged ones were in the input.
+fn new_intersections(mesh: &Mesh, moved: &[bool]) -> Vec<u32> {
+    let changed = |t: u32| {
+        mesh.triangles[t as usize]
+            .iter()
+            .any(|&k| moved[k as usize])
+    };
+    let mut out = crate::selfx::self_intersecting_triangles(mesh);
+    out.retain(|&t| changed(t));
+    out
+}

@@ -1,0 +1,143 @@
+//! Garland–Heckbert quadrics: the error measure of a collapse and the new vertex's place.
+
+use voxoct_core::glam::{DVec3, Vec3};
+
+use super::collapse::greater;
+use crate::fans::VertexFans;
+use crate::mesh::Mesh;
+use crate::par;
+
+/// A symmetric 4×4 quadric (upper triangle, row by row) and its weight.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Quadric {
+    pub(super) q: [f64; 10],
+    pub(super) w: f64,
+}
+
+impl Quadric {
+    /// `w · (n·x + d)²` for the plane with unit normal `n`.
+    pub(super) fn plane(n: DVec3, d: f64, w: f64) -> Self {
+        let q = [
+            n.x * n.x,
+            n.x * n.y,
+            n.x * n.z,
+            n.x * d,
+            n.y * n.y,
+            n.y * n.z,
+            n.y * d,
+            n.z * n.z,
+            n.z * d,
+            d * d,
+        ];
+        Self {
+            q: q.map(|x| x * w),
+            w,
+        }
+    }
+
+    pub(super) fn add(&mut self, o: &Self) {
+        for (a, b) in self.q.iter_mut().zip(&o.q) {
+            *a += b;
+        }
+        self.w += o.w;
+    }
+
+    pub(super) fn sum(a: &Self, b: &Self) -> Self {
+        let mut s = *a;
+        s.add(b);
+        s
+    }
+
+    /// `Q(p)`: the weighted sum of squared plane distances.
+    pub(super) fn eval(&self, p: DVec3) -> f64 {
+        let q = &self.q;
+        let (x, y, z) = (p.x, p.y, p.z);
+        x * (q[0] * x + 2.0 * (q[1] * y + q[2] * z + q[3]))
+            + y * (q[4] * y + 2.0 * (q[5] * z + q[6]))
+            + z * (q[7] * z + 2.0 * q[8])
+            + q[9]
+    }
+
+    /// Mean squared distance at `p` (the error² of the module docs).
+    pub(super) fn mean_sq(&self, p: DVec3) -> f64 {
+        if self.w > 0.0 {
+            (self.eval(p) / self.w).max(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// The minimum of `Q`, regularised towards `m`: solves `(A + λI) x = λm − b` with
+    /// `λ = RIDGE · trace(A)`; `None` if singular.
+    pub(super) fn minimum(&self, m: DVec3) -> Option<DVec3> {
+        let q = &self.q;
+        let lambda = RIDGE * (q[0] + q[4] + q[7]);
+        let (a00, a01, a02) = (q[0] + lambda, q[1], q[2]);
+        let (a11, a12) = (q[4] + lambda, q[5]);
+        let a22 = q[7] + lambda;
+        let r = DVec3::new(
+            lambda * m.x - q[3],
+            lambda * m.y - q[6],
+            lambda * m.z - q[8],
+        );
+        // Cramer's rule on the symmetric matrix.
+        let c00 = a11 * a22 - a12 * a12;
+        let c01 = a02 * a12 - a01 * a22;
+        let c02 = a01 * a12 - a02 * a11;
+        let det = a00 * c00 + a01 * c01 + a02 * c02;
+        if !greater(det.abs(), 1e-300) {
+            return None;
+        }
+        let c11 = a00 * a22 - a02 * a02;
+        let c12 = a01 * a02 - a00 * a12;
+        let c22 = a00 * a11 - a01 * a01;
+        let x = DVec3::new(
+            c00 * r.x + c01 * r.y + c02 * r.z,
+            c01 * r.x + c11 * r.y + c12 * r.z,
+            c02 * r.x + c12 * r.y + c22 * r.z,
+        ) / det;
+        x.is_finite().then_some(x)
+    }
+}
+
+/// Ridge of [`Quadric::minimum`] relative to the quadric's trace.
+pub(super) const RIDGE: f64 = 1e-3;
+
+/// Per-vertex quadrics of `mesh` (in coordinates relative to its first vertex) and
+/// area-weighted normals.
+pub(super) fn initial_quadrics(mesh: &Mesh) -> Vec<(Quadric, Vec3)> {
+    let o = origin(mesh);
+    let planes: Vec<Quadric> = {
+        let mut v = Vec::new();
+        par::map_into(&mut v, mesh.triangles.len(), |i| {
+            let [a, b, c] = mesh.triangles[i].map(|k| mesh.vertices[k as usize].as_dvec3() - o);
+            let n = (b - a).cross(c - a);
+            let len = n.length();
+            if len > 0.0 {
+                let n = n / len;
+                Quadric::plane(n, -n.dot(a), len / 6.0)
+            } else {
+                Quadric::default()
+            }
+        });
+        v
+    };
+    let csr = VertexFans::new(mesh.vertices.len(), &mesh.triangles, |_| true, false);
+    let mut out = Vec::new();
+    par::map_into(&mut out, mesh.vertices.len(), |v| {
+        let mut q = Quadric::default();
+        let mut n = Vec3::ZERO;
+        for &t in csr.fan(v as u32) {
+            q.add(&planes[t as usize]);
+            let [a, b, c] = mesh.triangles[t as usize].map(|k| mesh.vertices[k as usize]);
+            n += (b - a).cross(c - a);
+        }
+        (q, n)
+    });
+    out
+}
+
+/// The origin of the quadrics' coordinates.
+pub(super) fn origin(mesh: &Mesh) -> DVec3 {
+    mesh.vertices.first().map_or(DVec3::ZERO, |p| p.as_dvec3())
+}
