@@ -44,7 +44,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
-use voxoct::depth::{ScanWriter, ScannerConfig, SensorConfig};
+use voxoct::depth::{ScanWriter, ScannerConfig};
 use voxoct::kinect::{
     DepthSource, FAKENECT_HEIGHT, FAKENECT_WIDTH, FakenectSource, FakenectWriter, Model, SimConfig,
     SimulatedKinect,
@@ -53,7 +53,7 @@ use voxoct::turntable::{SimulatedTurntable, Turntable};
 
 /// Write simulated Kinect v1 frames as a fakenect recording for a rehearsed live scan.
 #[derive(Debug, Parser)]
-#[command(name = "record_fakenect", version, about)]
+#[command(name = "record_fakenect", version)]
 struct Args {
     /// The fakenect recording to write (INDEX.txt + d-*.pgm); must be new or empty.
     #[arg(long, value_name = "DIR")]
@@ -135,17 +135,7 @@ fn run(args: &Args) -> Result<(), String> {
     };
     let config = match &args.config {
         Some(p) => ScannerConfig::from_file(p).map_err(|e| format!("--config: {e}"))?,
-        None => {
-            let sim = SimConfig::default();
-            ScannerConfig {
-                sensor: SensorConfig {
-                    intrinsics: sim.intrinsics,
-                    depth_unit_m: sim.unit_m,
-                },
-                rig: sim.rig,
-                ..ScannerConfig::default()
-            }
-        }
+        None => voxoct::session::scanner_config_of(&SimConfig::default()),
     };
     let intrinsics = config.sensor.intrinsics;
     if (intrinsics.width, intrinsics.height) != (FAKENECT_WIDTH, FAKENECT_HEIGHT) {
@@ -154,14 +144,7 @@ fn run(args: &Args) -> Result<(), String> {
             intrinsics.width, intrinsics.height
         ));
     }
-    let sim_config = SimConfig {
-        intrinsics,
-        rig: config.rig,
-        unit_m: config.sensor.depth_unit_m,
-        seed: args.seed,
-        exact: args.exact,
-        ..SimConfig::default()
-    };
+    let sim_config = voxoct::session::sim_config_of(&config, args.seed, args.exact);
     let mut kinect =
         SimulatedKinect::new(&model, sim_config).map_err(|e| format!("simulator: {e}"))?;
     let mut table =
