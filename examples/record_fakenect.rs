@@ -46,10 +46,11 @@ use std::time::Duration;
 use clap::Parser;
 use voxoct::depth::{ScanWriter, ScannerConfig};
 use voxoct::kinect::{
-    DepthSource, FAKENECT_HEIGHT, FAKENECT_WIDTH, FakenectSource, FakenectWriter, Model, SimConfig,
-    SimulatedKinect,
+    DepthFrame, DepthSource, FAKENECT_HEIGHT, FAKENECT_WIDTH, FakenectSource, FakenectWriter,
+    Model, SimConfig, SimulatedKinect,
 };
-use voxoct::turntable::{SimulatedTurntable, Turntable};
+use voxoct::session::Event;
+use voxoct::turntable::SimulatedTurntable;
 
 /// Write simulated Kinect v1 frames as a fakenect recording for a rehearsed live scan.
 #[derive(Debug, Parser)]
@@ -152,40 +153,44 @@ fn run(args: &Args) -> Result<(), String> {
     let mut writer = FakenectWriter::create(&args.out, Duration::from_millis(args.interval_ms))
         .map_err(|e| format!("--out: {e}"))?;
     let t = Duration::from_secs(60);
-    let mut grab = |kinect: &mut SimulatedKinect| -> Result<(), String> {
-        let frame = kinect.grab(t).map_err(|e| format!("simulator: {e}"))?;
-        writer.add_frame(&frame).map_err(|e| format!("--out: {e}"))
+    let grab = |kinect: &mut SimulatedKinect, n: u32| -> Result<Vec<DepthFrame>, String> {
+        (0..n)
+            .map(|_| kinect.grab(t).map_err(|e| format!("simulator: {e}")))
+            .collect()
     };
 
-    // The same sequence as the live scan's capture (examples/scan/source.rs).
-    table.home().map_err(|e| format!("turntable: {e}"))?;
-    let mut angles = Vec::new();
+    // Lead-in at the home position, then the live scan's own capture loop
+    // (voxoct::session::capture, which homes the table first: already there).
     kinect.set_turntable_angle_deg(0.0);
-    for _ in 0..args.lead_in {
-        grab(&mut kinect)?;
+    let lead_in = grab(&mut kinect, args.lead_in)?;
+    let snapshots = voxoct::session::capture(
+        &mut kinect,
+        &mut table,
+        SimulatedKinect::set_turntable_angle_deg,
+        args.snapshots,
+        args.frames,
+        |event| {
+            if let Event::Snapshot {
+                index,
+                of,
+                angle_deg,
+                frames,
+            } = event
+            {
+                eprintln!(
+                    "record_fakenect: snapshot {}/{of} at {angle_deg}°: {frames} frames",
+                    index + 1
+                );
+            }
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let tail = grab(&mut kinect, args.tail)?;
+    let captured = snapshots.iter().flat_map(|s| &s.frames);
+    for frame in lead_in.iter().chain(captured).chain(&tail) {
+        writer.add_frame(frame).map_err(|e| format!("--out: {e}"))?;
     }
-    for k in 0..args.snapshots {
-        let angle = table.angle_deg().map_err(|e| format!("turntable: {e}"))? as f32;
-        kinect.set_turntable_angle_deg(angle);
-        for _ in 0..args.frames {
-            grab(&mut kinect)?;
-        }
-        angles.push(angle);
-        eprintln!(
-            "record_fakenect: snapshot {}/{} at {angle}°: {} frames",
-            k + 1,
-            args.snapshots,
-            args.frames
-        );
-        if k + 1 < args.snapshots {
-            table
-                .rotate_by(360.0 / f64::from(args.snapshots), t)
-                .map_err(|e| format!("turntable: {e}"))?;
-        }
-    }
-    for _ in 0..args.tail {
-        grab(&mut kinect)?;
-    }
+    let angles: Vec<f32> = snapshots.iter().map(|s| s.angle_deg).collect();
     let total = writer.frames();
     let dir = writer.finish().map_err(|e| format!("--out: {e}"))?;
     eprintln!(
