@@ -164,12 +164,6 @@ pub enum Source {
 }
 
 impl Source {
-    /// Whether this source captures frames by turning a table (simulated or live).
-    #[must_use]
-    pub fn captures(&self) -> bool {
-        matches!(self, Self::Simulated { .. } | Self::Kinect { .. })
-    }
-
     /// The directory the frames are read from, for a recorded scan or a fakenect recording.
     #[must_use]
     pub fn input_dir(&self) -> Option<&Path> {

@@ -22,6 +22,7 @@ use std::time::Instant;
 use clap::{ArgMatches, CommandFactory, FromArgMatches};
 use indicatif::ProgressBar;
 
+use voxoct::mesh_file::MeshFile;
 use voxoct::output::{OutputId, Outputs};
 use voxoct::pipeline::{Params, Reconstruction, disagreement_explained_m, reconstruct};
 use voxoct::session::{self, Acquired, Event};
@@ -91,90 +92,66 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
     let session = args.session();
     session.validate().map_err(|e| e.to_string())?;
     let file = args.mesh_file()?;
-    let mut planned = plan(args)?;
+    let planned = plan(args)?;
     let progress = Progress {
         enabled: !args.quiet && std::io::stderr().is_terminal(),
     };
     let t_start = Instant::now();
-    let mut seconds = Seconds::default();
 
-    let t = Instant::now();
     let acquired = acquire(args, &session, &params, &progress)?;
-    seconds.load = t.elapsed().as_secs_f64();
-    let (source, n_snapshots) = (acquired.source.clone(), acquired.snapshots.len());
-    let n_frames: usize = acquired.snapshots.iter().map(|s| s.frames.len()).sum();
-    let config = acquired.config;
+    let load = t_start.elapsed();
+    let source = acquired.source.clone();
+    let (n_snapshots, n_frames) = (
+        acquired.snapshots.len(),
+        acquired.snapshots.iter().map(|s| s.frames.len()).sum(),
+    );
+    let limit_m = disagreement_explained_m(acquired.config.rig.sensor_position_m.length());
     let result = reconstruct_with_progress(acquired, &params, &progress)?;
-    let Reconstruction {
-        mesh,
-        tree,
-        triangles_in,
-        timings,
-        disagreement_m,
-    } = result;
-    let agreement_limit_m = disagreement_explained_m(config.rig.sensor_position_m.length());
-    report::warn_if_disagreeing(disagreement_m, agreement_limit_m);
-    seconds.filter = timings.filter.as_secs_f64();
-    seconds.agreement = timings.agreement.as_secs_f64();
-    seconds.triangulate = timings.triangulate.as_secs_f64();
-    seconds.insert = timings.insert.as_secs_f64();
-    seconds.mesh = timings.mesh.as_secs_f64();
-    let closed = mesh.check_closed_manifold();
-    if mesh.triangles.is_empty() {
-        return Err(report::explain_empty(args, triangles_in, tree.leaf_count()));
+    report::warn_if_disagreeing(result.disagreement_m, limit_m);
+    if result.mesh.triangles.is_empty() {
+        let leaves = result.tree.leaf_count();
+        return Err(report::explain_empty(args, result.triangles_in, leaves));
     }
-
-    // The mesh, the preview and the stats replace the old files together.
-    let t = Instant::now();
-    let e = |e: voxoct::output::OutputError| e.to_string();
-    let o = &mut planned.outputs;
-    o.write(planned.out, |w| file.write(&mesh, &tree, w))
-        .map_err(e)?;
-    seconds.write = t.elapsed().as_secs_f64();
-    if let Some(id) = planned.preview {
-        o.write(id, |w| {
-            voxoct::preview::write_preview(w, &mesh.vertices, &mesh.triangles)
-        })
-        .map_err(e)?;
-    }
-    seconds.total = t_start.elapsed().as_secs_f64();
-    let mstats = mesh.stats();
-    let self_intersecting = mesh.self_intersecting_triangles().len();
-    let stats = Stats {
-        source,
-        snapshots: n_snapshots,
-        frames: n_frames,
-        filter: params.filter.to_string(),
-        triangles_in,
-        leaves: tree.leaf_count(),
-        leaf_size_m: tree.leaf_edge(),
-        octree_depth: tree.depth(),
-        octree_bytes: tree.memory_bytes(),
-        mesh_triangles: mesh.triangles.len(),
-        mesh_vertices: mesh.vertices.len(),
-        mesh_components: mstats.components,
-        mesh_volume_m3: mstats.volume,
-        mesh_area_m2: mstats.area,
-        closed_manifold: closed.is_ok(),
-        snapshot_disagreement_m: disagreement_m,
-        snapshot_disagreement_limit_m: agreement_limit_m,
-        self_intersecting_triangles: self_intersecting,
-        valid_solid: closed.is_ok() && self_intersecting == 0,
-        peak_rss_bytes: voxoct::budget::peak_rss_bytes(),
-        threads: voxoct::threads(),
-        seconds,
-    };
-    if let Some(id) = planned.stats {
-        let json = serde_json::to_string_pretty(&stats).map_err(|e| format!("stats: {e}"))?;
-        o.write(id, |w| w.write_all(json.as_bytes())).map_err(e)?;
-    }
-    planned.outputs.commit().map_err(e)?;
+    let closed = result.mesh.check_closed_manifold();
+    let facts = (limit_m, closed.is_ok());
+    let mut stats = Stats::new(source, (n_snapshots, n_frames), &params, &result, facts);
+    stats.seconds = Seconds::of(load, &result.timings);
+    write_outputs(planned, &file, &result, &mut stats, t_start)?;
     if !args.quiet {
         report::summary(&stats, &args.out, &file);
     }
     closed.map_err(|e| {
         format!("internal error: the mesh is not closed ({e}); please report this with the scan")
     })
+}
+
+/// Writes the mesh, the preview and the stats; they replace the old files together.
+fn write_outputs(
+    mut planned: Planned,
+    file: &MeshFile,
+    result: &Reconstruction,
+    stats: &mut Stats,
+    t_start: Instant,
+) -> Result<(), String> {
+    let e = |e: voxoct::output::OutputError| e.to_string();
+    let (mesh, o) = (&result.mesh, &mut planned.outputs);
+    let t = Instant::now();
+    o.write(planned.out, |w| file.write(mesh, &result.tree, w))
+        .map_err(e)?;
+    stats.seconds.write = t.elapsed().as_secs_f64();
+    if let Some(id) = planned.preview {
+        o.write(id, |w| {
+            voxoct::preview::write_preview(w, &mesh.vertices, &mesh.triangles)
+        })
+        .map_err(e)?;
+    }
+    stats.seconds.total = t_start.elapsed().as_secs_f64();
+    stats.peak_rss_bytes = voxoct::budget::peak_rss_bytes();
+    if let Some(id) = planned.stats {
+        let json = serde_json::to_string_pretty(&stats).map_err(|e| format!("stats: {e}"))?;
+        o.write(id, |w| w.write_all(json.as_bytes())).map_err(e)?;
+    }
+    planned.outputs.commit().map_err(e)
 }
 
 /// Captures or loads the frames, with a progress bar, and records them with `--record-to`.

@@ -5,6 +5,7 @@ use std::time::Duration;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use voxoct::mesh_file::MeshFile;
+use voxoct::pipeline::{Params, Reconstruction, Timings};
 
 use crate::args::Args;
 
@@ -91,6 +92,62 @@ pub struct Stats {
     pub peak_rss_bytes: u64,
     pub threads: usize,
     pub seconds: Seconds,
+}
+
+impl Seconds {
+    /// The load time and the pipeline's stages; `write` and `total` are filled later.
+    pub fn of(load: Duration, t: &Timings) -> Self {
+        Self {
+            load: load.as_secs_f64(),
+            filter: t.filter.as_secs_f64(),
+            agreement: t.agreement.as_secs_f64(),
+            triangulate: t.triangulate.as_secs_f64(),
+            insert: t.insert.as_secs_f64(),
+            mesh: t.mesh.as_secs_f64(),
+            ..Self::default()
+        }
+    }
+}
+
+impl Stats {
+    /// The figures of a run: its source, `(snapshots, frames)`, parameters and result,
+    /// with the disagreement limit and whether the mesh is closed; the times and peak
+    /// memory are filled later.
+    pub fn new(
+        source: String,
+        (snapshots, frames): (usize, usize),
+        params: &Params,
+        r: &Reconstruction,
+        (limit_m, closed): (f32, bool),
+    ) -> Self {
+        let (mesh, tree) = (&r.mesh, &r.tree);
+        let mstats = mesh.stats();
+        let self_intersecting = mesh.self_intersecting_triangles().len();
+        Self {
+            source,
+            snapshots,
+            frames,
+            filter: params.filter.to_string(),
+            triangles_in: r.triangles_in,
+            leaves: tree.leaf_count(),
+            leaf_size_m: tree.leaf_edge(),
+            octree_depth: tree.depth(),
+            octree_bytes: tree.memory_bytes(),
+            mesh_triangles: mesh.triangles.len(),
+            mesh_vertices: mesh.vertices.len(),
+            mesh_components: mstats.components,
+            mesh_volume_m3: mstats.volume,
+            mesh_area_m2: mstats.area,
+            closed_manifold: closed,
+            snapshot_disagreement_m: r.disagreement_m,
+            snapshot_disagreement_limit_m: limit_m,
+            self_intersecting_triangles: self_intersecting,
+            valid_solid: closed && self_intersecting == 0,
+            peak_rss_bytes: 0,
+            threads: voxoct::threads(),
+            seconds: Seconds::default(),
+        }
+    }
 }
 
 /// The short report at the end of a run.
