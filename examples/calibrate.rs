@@ -30,7 +30,7 @@ use voxoct::output::Outputs;
 
 /// Measure a recorded scan's rig (tilt and sensor position) from the scan itself.
 #[derive(Debug, Parser)]
-#[command(name = "calibrate", version, about, long_about = None)]
+#[command(name = "calibrate", version, long_about = None)]
 struct Args {
     /// The recorded scan of an object over a full turn (scan.toml + frames).
     #[arg(long, value_name = "DIR")]

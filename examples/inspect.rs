@@ -26,7 +26,7 @@ use voxoct::output::Outputs;
 
 /// Pictures of a recorded scan: frames, filtered snapshots, filter differences, point views.
 #[derive(Debug, Parser)]
-#[command(name = "inspect", version, about, long_about = None)]
+#[command(name = "inspect", version, long_about = None)]
 struct Args {
     /// The recorded scan (scan.toml + frames).
     #[arg(long, value_name = "DIR")]

@@ -44,17 +44,18 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
+use voxoct::depth::ScannerConfig;
 use voxoct::depth::scan::ScanWriter;
-use voxoct::depth::{ScannerConfig, SensorConfig};
 use voxoct::kinect::{
-    DepthSource, FAKENECT_HEIGHT, FAKENECT_WIDTH, FakenectSource, FakenectWriter, Model, SimConfig,
-    SimulatedKinect,
+    DepthFrame, DepthSource, FAKENECT_HEIGHT, FAKENECT_WIDTH, FakenectSource, FakenectWriter,
+    Model, SimConfig, SimulatedKinect,
 };
-use voxoct::turntable::{SimulatedTurntable, Turntable};
+use voxoct::session::Event;
+use voxoct::turntable::SimulatedTurntable;
 
 /// Write simulated Kinect v1 frames as a fakenect recording for a rehearsed live scan.
 #[derive(Debug, Parser)]
-#[command(name = "record_fakenect", version, about)]
+#[command(name = "record_fakenect", version)]
 struct Args {
     /// The fakenect recording to write (INDEX.txt + d-*.pgm); must be new or empty.
     #[arg(long, value_name = "DIR")]
@@ -136,17 +137,7 @@ fn run(args: &Args) -> Result<(), String> {
     };
     let config = match &args.config {
         Some(p) => ScannerConfig::from_file(p).map_err(|e| format!("--config: {e}"))?,
-        None => {
-            let sim = SimConfig::default();
-            ScannerConfig {
-                sensor: SensorConfig {
-                    intrinsics: sim.intrinsics,
-                    depth_unit_m: sim.unit_m,
-                },
-                rig: sim.rig,
-                ..ScannerConfig::default()
-            }
-        }
+        None => voxoct::session::scanner_config_of(&SimConfig::default()),
     };
     let intrinsics = config.sensor.intrinsics;
     if (intrinsics.width, intrinsics.height) != (FAKENECT_WIDTH, FAKENECT_HEIGHT) {
@@ -155,14 +146,7 @@ fn run(args: &Args) -> Result<(), String> {
             intrinsics.width, intrinsics.height
         ));
     }
-    let sim_config = SimConfig {
-        intrinsics,
-        rig: config.rig,
-        unit_m: config.sensor.depth_unit_m,
-        seed: args.seed,
-        exact: args.exact,
-        ..SimConfig::default()
-    };
+    let sim_config = voxoct::session::sim_config_of(&config, args.seed, args.exact);
     let mut kinect =
         SimulatedKinect::new(&model, sim_config).map_err(|e| format!("simulator: {e}"))?;
     let mut table =
@@ -170,40 +154,44 @@ fn run(args: &Args) -> Result<(), String> {
     let mut writer = FakenectWriter::create(&args.out, Duration::from_millis(args.interval_ms))
         .map_err(|e| format!("--out: {e}"))?;
     let t = Duration::from_secs(60);
-    let mut grab = |kinect: &mut SimulatedKinect| -> Result<(), String> {
-        let frame = kinect.grab(t).map_err(|e| format!("simulator: {e}"))?;
-        writer.add_frame(&frame).map_err(|e| format!("--out: {e}"))
+    let grab = |kinect: &mut SimulatedKinect, n: u32| -> Result<Vec<DepthFrame>, String> {
+        (0..n)
+            .map(|_| kinect.grab(t).map_err(|e| format!("simulator: {e}")))
+            .collect()
     };
 
-    // The same sequence as the live scan's capture (examples/scan/source.rs).
-    table.home().map_err(|e| format!("turntable: {e}"))?;
-    let mut angles = Vec::new();
+    // Lead-in at the home position, then the live scan's own capture loop
+    // (voxoct::session::capture, which homes the table first: already there).
     kinect.set_turntable_angle_deg(0.0);
-    for _ in 0..args.lead_in {
-        grab(&mut kinect)?;
+    let lead_in = grab(&mut kinect, args.lead_in)?;
+    let snapshots = voxoct::session::capture(
+        &mut kinect,
+        &mut table,
+        SimulatedKinect::set_turntable_angle_deg,
+        args.snapshots,
+        args.frames,
+        |event| {
+            if let Event::Snapshot {
+                index,
+                of,
+                angle_deg,
+                frames,
+            } = event
+            {
+                eprintln!(
+                    "record_fakenect: snapshot {}/{of} at {angle_deg}°: {frames} frames",
+                    index + 1
+                );
+            }
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let tail = grab(&mut kinect, args.tail)?;
+    let captured = snapshots.iter().flat_map(|s| &s.frames);
+    for frame in lead_in.iter().chain(captured).chain(&tail) {
+        writer.add_frame(frame).map_err(|e| format!("--out: {e}"))?;
     }
-    for k in 0..args.snapshots {
-        let angle = table.angle_deg().map_err(|e| format!("turntable: {e}"))? as f32;
-        kinect.set_turntable_angle_deg(angle);
-        for _ in 0..args.frames {
-            grab(&mut kinect)?;
-        }
-        angles.push(angle);
-        eprintln!(
-            "record_fakenect: snapshot {}/{} at {angle}°: {} frames",
-            k + 1,
-            args.snapshots,
-            args.frames
-        );
-        if k + 1 < args.snapshots {
-            table
-                .rotate_by(360.0 / f64::from(args.snapshots), t)
-                .map_err(|e| format!("turntable: {e}"))?;
-        }
-    }
-    for _ in 0..args.tail {
-        grab(&mut kinect)?;
-    }
+    let angles: Vec<f32> = snapshots.iter().map(|s| s.angle_deg).collect();
     let total = writer.frames();
     let dir = writer.finish().map_err(|e| format!("--out: {e}"))?;
     eprintln!(

@@ -12,7 +12,12 @@
 //! | [`turntable`] | `voxoct-turntable` | turntables: simulated, stepper on GPIO (`gpio`), TCP |
 //! | [`stl`] | `voxoct-stl` | STL reading and writing |
 //!
-//! [`output`] writes the tools' output files: checked up front, all or nothing, atomic.
+//! Above them, what a scanning tool needs: [`session`] (where the frames come from: a
+//! simulated or live capture over a turntable, a recorded scan, a fakenect recording),
+//! [`budget`] (the memory a run will need), [`mesh_file`] (the mesh file's format, units
+//! and frame), [`preview`] (a shaded picture of the result) and [`output`] (output files
+//! checked up front, written all or nothing). The `scan` example is these calls and its
+//! flags; [`session`] shows a whole scan scripted with the library alone.
 //!
 //! ```
 //! use voxoct::depth::ScannerConfig;
@@ -48,5 +53,12 @@ pub use voxoct_turntable as turntable;
 
 /// Free-space carving, now in [`voxoct_depth::carve`] (re-exported here for compatibility).
 pub use voxoct_depth::carve;
+pub mod budget;
+pub mod mesh_file;
 pub mod output;
+mod par;
 pub mod pipeline;
+pub mod preview;
+pub mod session;
+
+pub use par::threads;

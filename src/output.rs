@@ -301,10 +301,7 @@ impl Outputs {
         );
         for p in order {
             let result = match &p.target {
-                Target::Replace { target, temp, .. } => fs::rename(temp, target).map(|()| {
-                    forget_temp(temp);
-                    sync_parent(target);
-                }),
+                Target::Replace { target, temp, .. } => replace_with(target, temp),
                 Target::Direct { target } => OpenOptions::new()
                     .write(true)
                     .open(target)
@@ -569,6 +566,19 @@ fn remove_temp(temp: &Path) {
         registry.swap_remove(i);
         let _ = fs::remove_file(temp);
     }
+}
+
+/// Replaces `target` by the synced temporary file `temp` (same directory) and makes the
+/// rename durable.
+// TODO(issue15): the one public atomic writer is voxoct-stl's (refusing to replace a
+// symlink or device, fsync); this transaction of several outputs creates its temporaries
+// before the work and renames them together after it, which a one-shot writer cannot do.
+// Move this step onto voxoct-stl's primitives once they expose "publish a prepared file".
+fn replace_with(target: &Path, temp: &Path) -> io::Result<()> {
+    fs::rename(temp, target)?;
+    forget_temp(temp);
+    sync_parent(target);
+    Ok(())
 }
 
 /// Makes a rename durable: syncs the directory that holds `target` (best effort).

@@ -6,27 +6,27 @@
 //! triangle overlaps ([`voxoct_core::Octree`]), and mesh the marked leaves
 //! ([`voxoct_mesh::mesh_cells`]) — in solid mode after closing what no frame saw with the
 //! smallest surface ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]).
-//! Snapshots are processed in parallel with the `parallel` feature.
+//! Snapshots are processed in parallel with the `parallel` feature. [`Params::validate`]
+//! checks every knob once, naming it as the `scan` example's flag does.
 
 use std::time::{Duration, Instant};
 
 use voxoct_core::glam::{UVec3, Vec3};
-use voxoct_core::{Octree, OctreeError, Triangle};
+use voxoct_core::{Cell, GridSpec, Octree, OctreeError, Triangle};
 use voxoct_depth::calib::{AxisOptions, CalibSnapshot, alignment_residual};
 use voxoct_depth::filter::FilterChain;
 use voxoct_depth::noise::kinect_v1_sigma;
 use voxoct_depth::scan::RecordedScan;
 use voxoct_depth::snapshot::Snapshot;
 use voxoct_depth::triangulate::{DEFAULT_MAX_EDGE_SQ, triangulate};
-use voxoct_depth::{DepthFrame, FrameError, ScannerConfig, SensorConfig};
+use voxoct_depth::{DepthFrame, FrameError, ScannerConfig};
 use voxoct_kinect::{DepthSource, SimulatedKinect, SourceError};
 use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplify};
 
+use crate::par;
+
 use voxoct_depth::carve::{CarveView, Seen, visibility};
 use voxoct_mesh::closure::{close_cells, closure_box};
-
-#[cfg(feature = "parallel")]
-use rayon::prelude::*;
 
 /// The frames of one snapshot and the turntable angle they were taken at.
 #[derive(Debug, Clone, PartialEq)]
@@ -42,19 +42,21 @@ pub struct SnapshotFrames {
 pub struct Params {
     /// Depth filter chain applied to each snapshot's frames.
     pub filter: FilterChain,
-    /// Leaf size, metres: the real leaf edge is `root / 2^depth`, the largest not above this.
+    /// Leaf size, metres (`--leaf`): the real leaf edge is `root / 2^depth`, the largest not
+    /// above this.
     pub leaf_m: f32,
-    /// Edge of the octree's cubic root, metres; the root is centred on the clip box.
+    /// Edge of the octree's cubic root, metres (`--root`); the root is centred on the clip box.
     pub root_m: f32,
-    /// Largest squared triangle edge kept by the triangulation, m².
+    /// Largest squared triangle edge kept by the triangulation, m² (`--threshold`).
     pub max_edge_sq: f32,
-    /// Mesh this many levels coarser than the leaves (level of detail).
+    /// Mesh this many levels coarser than the leaves (level of detail, `--lod`).
     pub lod: u32,
     /// Meshing options. With `solid` and [`Floor::LowestMarked`], the floor is taken to be
     /// the clip box's floor instead.
     pub mesh: MeshOptions,
     /// Drop connected pieces of the mesh with fewer triangles than this fraction of the
-    /// largest piece (stray blobs of errant readings, bubbles inside the solid); 0 keeps all.
+    /// largest piece (stray blobs of errant readings, bubbles inside the solid); 0 keeps all
+    /// (`--min-piece`).
     pub min_piece_fraction: f32,
     /// With a solid mesh: close what no frame saw by a minimum cut between the space seen
     /// empty and the solid ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]),
@@ -65,9 +67,9 @@ pub struct Params {
     pub check_agreement: bool,
     /// Simplify the mesh after dropping small pieces ([`voxoct_mesh::simplify`]: quadric edge
     /// collapse that keeps it closed, manifold and free of new self-intersections); `None`
-    /// keeps every triangle. Off by default: it keeps the accuracy
-    /// but costs about 1 µs per triangle (three times the rest of the pipeline); use
-    /// [`Simplify::for_leaf`] of `leaf_m`.
+    /// keeps every triangle. Off by default: it keeps the accuracy but is slower than the
+    /// rest of the pipeline together (see BENCHMARKS.md); use [`Simplify::for_leaf`] of
+    /// `leaf_m`.
     pub simplify: Option<Simplify>,
 }
 
@@ -87,6 +89,160 @@ impl Default for Params {
             min_piece_fraction: 0.01,
             simplify: None,
         }
+    }
+}
+
+/// Most Taubin smoothing iterations [`Params::validate`] accepts (each is a pass over the mesh).
+pub const MAX_SMOOTH: u32 = 1000;
+/// Most triangle hits per leaf [`Params::validate`] accepts ([`MeshOptions::min_hits`]).
+pub const MAX_MIN_HITS: u32 = 1 << 16;
+/// Largest leaf [`Params::validate`] accepts, metres: larger than the objects a turntable
+/// scanner takes, so most likely a size given in millimetres.
+pub const MAX_LEAF_M: f32 = 0.05;
+
+/// A setting out of range or contradicting another. Its message names the setting as the
+/// `scan` example's flag does (`--leaf` for [`Params::leaf_m`], `--threshold` for
+/// [`Params::max_edge_sq`], …), which [`InvalidSetting::flag`] returns.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{message}")]
+pub struct InvalidSetting {
+    flag: &'static str,
+    message: String,
+}
+
+impl InvalidSetting {
+    /// A refusal of the setting that `flag` sets, with the whole message.
+    #[must_use]
+    pub fn new(flag: &'static str, message: impl Into<String>) -> Self {
+        Self {
+            flag,
+            message: message.into(),
+        }
+    }
+
+    /// The setting, named as the `scan` example's flag (e.g. `--leaf`).
+    #[must_use]
+    pub fn flag(&self) -> &'static str {
+        self.flag
+    }
+}
+
+impl Params {
+    /// Checks every knob, the one place they are checked: sizes positive and finite, the
+    /// leaf within the root and at most [`MAX_LEAF_M`], fractions in `0..=1`, counts
+    /// bounded ([`MAX_SMOOTH`], [`MAX_MIN_HITS`]), `lod` within the octree's depth and
+    /// `min_component_cells` within its largest surface. [`reconstruct`] calls it first; a
+    /// tool calls it too, to refuse bad flags before any frame is read.
+    ///
+    /// # Errors
+    /// [`PipelineError::Setting`] naming the setting as the `scan` example's flag does;
+    /// [`PipelineError::Octree`] when no octree of that root and leaf can be built.
+    pub fn validate(&self) -> Result<(), PipelineError> {
+        let bad = |flag, message: String| Err(InvalidSetting::new(flag, message).into());
+        for (flag, v) in [("--leaf", self.leaf_m), ("--root", self.root_m)] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(
+                    flag,
+                    format!("{flag} must be a positive number of metres, got {v}"),
+                );
+            }
+        }
+        if self.leaf_m > self.root_m {
+            return bad(
+                "--leaf",
+                format!(
+                    "--leaf {} is larger than the octree root --root {}",
+                    self.leaf_m, self.root_m
+                ),
+            );
+        }
+        if !(self.max_edge_sq.is_finite() && self.max_edge_sq > 0.0) {
+            return bad(
+                "--threshold",
+                format!(
+                    "--threshold must be a positive squared edge length in m², got {}",
+                    self.max_edge_sq
+                ),
+            );
+        }
+        if let Some(e) = self.simplify.as_ref().map(|s| s.max_error)
+            && !(e.is_finite() && e >= 0.0)
+        {
+            return bad(
+                "--max-error",
+                format!("--max-error must be a non-negative number of metres, got {e}"),
+            );
+        }
+        if !(0.0..=1.0).contains(&self.min_piece_fraction) {
+            return bad(
+                "--min-piece",
+                format!(
+                    "--min-piece must be a fraction between 0 and 1, got {}",
+                    self.min_piece_fraction
+                ),
+            );
+        }
+        if let Some(n) = self.mesh.smoothing.as_ref().map(|t| t.iterations)
+            && n > MAX_SMOOTH
+        {
+            return bad(
+                "--smooth",
+                format!("--smooth must be between 0 and {MAX_SMOOTH} iterations, got {n}"),
+            );
+        }
+        let hits = self.mesh.min_hits;
+        if hits > MAX_MIN_HITS {
+            return bad(
+                "--min-hits",
+                format!(
+                    "--min-hits must be between 0 and {MAX_MIN_HITS}, got {hits} (no leaf is hit \
+                     that often: the mesh would be empty)"
+                ),
+            );
+        }
+        let depth = Octree::new(Vec3::ZERO, self.root_m, self.leaf_m)
+            .map_err(|source| PipelineError::Octree {
+                root_m: self.root_m,
+                leaf_m: self.leaf_m,
+                source,
+            })?
+            .depth();
+        if self.lod > depth {
+            return bad(
+                "--lod",
+                format!(
+                    "--lod {}: the level of detail cannot exceed the octree's {depth} levels \
+                     (--root {} m with --leaf {} m)",
+                    self.lod, self.root_m, self.leaf_m
+                ),
+            );
+        }
+        let c = self.mesh.min_component_cells;
+        let leaves_per_side = 1u64 << depth.min(21);
+        if c as u64
+            > leaves_per_side
+                .saturating_mul(leaves_per_side)
+                .saturating_mul(6)
+        {
+            return bad(
+                "--min-component",
+                format!(
+                    "--min-component {c} is more leaves than any surface in this octree has; \
+                     every piece would be removed"
+                ),
+            );
+        }
+        if self.leaf_m > MAX_LEAF_M {
+            return bad(
+                "--leaf",
+                format!(
+                    "--leaf {} m is larger than the objects a turntable scanner takes; --leaf is \
+                     in metres (0.001 = 1 mm)",
+                    self.leaf_m
+                ),
+            );
+        }
+        Ok(())
     }
 }
 
@@ -187,16 +343,9 @@ pub enum PipelineError {
     /// No snapshots were given.
     #[error("no snapshots to reconstruct")]
     NoSnapshots,
-    /// A parameter is out of range.
-    #[error("{name} = {value}: {reason}")]
-    Param {
-        /// The parameter.
-        name: &'static str,
-        /// Its value.
-        value: f32,
-        /// Why it is refused.
-        reason: &'static str,
-    },
+    /// A parameter is out of range ([`Params::validate`]).
+    #[error(transparent)]
+    Setting(#[from] InvalidSetting),
 }
 
 /// Runs the whole reconstruction. `on_stage` is called as each stage starts.
@@ -204,7 +353,8 @@ pub enum PipelineError {
 /// Takes the snapshots by value so that their frames are freed as soon as they are filtered.
 ///
 /// # Errors
-/// [`PipelineError`] naming the snapshot, parameter or stage that failed.
+/// [`PipelineError`] naming the snapshot, parameter or stage that failed; the parameters
+/// are checked first ([`Params::validate`]).
 pub fn reconstruct(
     config: &ScannerConfig,
     snapshots: Vec<SnapshotFrames>,
@@ -214,69 +364,109 @@ pub fn reconstruct(
     if snapshots.is_empty() {
         return Err(PipelineError::NoSnapshots);
     }
-    if !(params.max_edge_sq.is_finite() && params.max_edge_sq > 0.0) {
-        return Err(PipelineError::Param {
-            name: "max_edge_sq",
-            value: params.max_edge_sq,
-            reason: "must be a positive squared length in m²",
-        });
-    }
+    params.validate()?;
     let mut timings = Timings::default();
 
     on_stage(Stage::Filter);
     let t = Instant::now();
     let angles: Vec<f32> = snapshots.iter().map(|s| s.angle_deg).collect();
-    let filtered = map_snapshots(snapshots, |index, s| {
-        params
-            .filter
+    let filtered = filter_snapshots(snapshots, &params.filter)?;
+    timings.filter = t.elapsed();
+    let t = Instant::now();
+    let disagreement_m = (params.check_agreement && filtered.len() > 1)
+        .then(|| measure_disagreement(config, &filtered, &angles))
+        .flatten();
+    timings.agreement = t.elapsed();
+
+    on_stage(Stage::Triangulate);
+    let t = Instant::now();
+    let triangles = triangulate_snapshots(config, &filtered, &angles, params.max_edge_sq)?;
+    timings.triangulate = t.elapsed();
+
+    on_stage(Stage::Insert);
+    let t = Instant::now();
+    let tree = build_octree(config, params, &triangles)?;
+    let triangles_in = triangles.len();
+    drop(triangles);
+    timings.insert = t.elapsed();
+
+    on_stage(Stage::Mesh);
+    let t = Instant::now();
+    let mesh = mesh_tree(config, params, &tree, filtered, &angles)?;
+    timings.mesh = t.elapsed();
+
+    Ok(Reconstruction {
+        mesh,
+        tree,
+        triangles_in,
+        timings,
+        disagreement_m,
+    })
+}
+
+/// Stage 1: each snapshot's frames filtered into one frame.
+fn filter_snapshots(
+    snapshots: Vec<SnapshotFrames>,
+    filter: &FilterChain,
+) -> Result<Vec<DepthFrame>, PipelineError> {
+    par::map_indexed(snapshots, |index, s| {
+        filter
             .apply(&s.frames)
             .map_err(|source| PipelineError::Snapshot {
                 index,
                 angle_deg: s.angle_deg,
                 source,
             })
-    })?;
-    timings.filter = t.elapsed();
-    let t_agreement = Instant::now();
-    let disagreement_m = if params.check_agreement && filtered.len() > 1 {
-        // At half resolution: a quarter of the memory and time, and still thousands of
-        // points per snapshot.
-        let calib: Vec<CalibSnapshot> = filtered
-            .iter()
-            .zip(&angles)
-            .map(|(frame, &angle_deg)| CalibSnapshot {
-                angle_deg,
-                frame: half_resolution(frame),
-            })
-            .collect();
-        let i = config.sensor.intrinsics;
-        let half = voxoct_depth::Intrinsics {
-            width: i.width.div_ceil(2),
-            height: i.height.div_ceil(2),
-            fx: i.fx * 0.5,
-            fy: i.fy * 0.5,
-            cx: i.cx * 0.5,
-            cy: i.cy * 0.5,
-        };
-        alignment_residual(
-            &calib,
-            &half,
-            &config.rig,
-            &config.clip,
-            &AxisOptions::default(),
-        )
-        .ok()
-        .map(|(r, _)| r)
-    } else {
-        None
-    };
-    timings.agreement = t_agreement.elapsed();
+    })
+}
 
-    on_stage(Stage::Triangulate);
-    let t = Instant::now();
+/// How much the filtered snapshots disagree under the rig ([`Reconstruction::disagreement_m`]),
+/// measured at half resolution: a quarter of the memory and time, and still thousands of
+/// points per snapshot.
+fn measure_disagreement(
+    config: &ScannerConfig,
+    filtered: &[DepthFrame],
+    angles: &[f32],
+) -> Option<f32> {
+    let calib: Vec<CalibSnapshot> = filtered
+        .iter()
+        .zip(angles)
+        .map(|(frame, &angle_deg)| CalibSnapshot {
+            angle_deg,
+            frame: half_resolution(frame),
+        })
+        .collect();
+    let i = config.sensor.intrinsics;
+    let half = voxoct_depth::Intrinsics {
+        width: i.width.div_ceil(2),
+        height: i.height.div_ceil(2),
+        fx: i.fx * 0.5,
+        fy: i.fy * 0.5,
+        cx: i.cx * 0.5,
+        cy: i.cy * 0.5,
+    };
+    alignment_residual(
+        &calib,
+        &half,
+        &config.rig,
+        &config.clip,
+        &AxisOptions::default(),
+    )
+    .ok()
+    .map(|(r, _)| r)
+}
+
+/// Stage 2: every filtered snapshot back-projected, transformed, clipped and triangulated,
+/// the triangles in snapshot order.
+fn triangulate_snapshots(
+    config: &ScannerConfig,
+    filtered: &[DepthFrame],
+    angles: &[f32],
+    max_edge_sq: f32,
+) -> Result<Vec<Triangle>, PipelineError> {
     let intrinsics = config.sensor.intrinsics;
     let jobs: Vec<(&DepthFrame, f32)> = filtered.iter().zip(angles.iter().copied()).collect();
-    let per_snapshot = map_snapshots(jobs, |index, (frame, angle_deg)| {
+    let per_snapshot = par::map_indexed(jobs, |index, (frame, angle_deg)| {
         let snap = Snapshot::from_frame(frame, &intrinsics, &config.rig, angle_deg, &config.clip)
             .map_err(|source| PipelineError::Snapshot {
             index,
@@ -284,14 +474,18 @@ pub fn reconstruct(
             source,
         })?;
         let mut tris = Vec::new();
-        triangulate(&snap, params.max_edge_sq, &mut tris);
-        Ok(tris)
+        triangulate(&snap, max_edge_sq, &mut tris);
+        Ok::<_, PipelineError>(tris)
     })?;
-    let triangles: Vec<Triangle> = per_snapshot.concat();
-    timings.triangulate = t.elapsed();
+    Ok(per_snapshot.concat())
+}
 
-    on_stage(Stage::Insert);
-    let t = Instant::now();
+/// Stage 3: the octree (root centred on the clip box) with every triangle inserted.
+fn build_octree(
+    config: &ScannerConfig,
+    params: &Params,
+    triangles: &[Triangle],
+) -> Result<Octree, PipelineError> {
     let centre = (config.clip.min + config.clip.max) * 0.5;
     let mut tree = Octree::new(
         centre - Vec3::splat(params.root_m * 0.5),
@@ -303,16 +497,19 @@ pub fn reconstruct(
         leaf_m: params.leaf_m,
         source,
     })?;
-    #[cfg(feature = "parallel")]
-    tree.par_insert(&triangles);
-    #[cfg(not(feature = "parallel"))]
-    tree.insert_all(&triangles);
-    let triangles_in = triangles.len();
-    drop(triangles);
-    timings.insert = t.elapsed();
+    par::insert(&mut tree, triangles);
+    Ok(tree)
+}
 
-    on_stage(Stage::Mesh);
-    let t = Instant::now();
+/// Stage 4: the marked leaves (at `lod` levels coarser) meshed; in solid mode what no
+/// frame saw is closed first ([`Params::carve`]); small pieces dropped, then simplified.
+fn mesh_tree(
+    config: &ScannerConfig,
+    params: &Params,
+    tree: &Octree,
+    filtered: Vec<DepthFrame>,
+    angles: &[f32],
+) -> Result<Mesh, PipelineError> {
     let depth = tree
         .depth()
         .checked_sub(params.lod)
@@ -329,31 +526,7 @@ pub fn reconstruct(
     let grid = tree.grid(depth);
     let mut cells = tree.cells_at_depth(depth);
     if params.carve && options.solid {
-        let views: Vec<CarveView<'_>> = filtered
-            .iter()
-            .zip(&angles)
-            .map(|(frame, &angle)| CarveView {
-                frame,
-                intrinsics,
-                object_to_camera: config.rig.camera_to_object(angle).inverse(),
-            })
-            .collect();
-        // Two standard deviations of the sensor's depth noise at the object's distance,
-        // plus half a cell diagonal.
-        let distance = config.rig.sensor_position_m.length();
-        let margin = 2.0 * kinect_v1_sigma(distance) + 0.87 * grid.cell;
-        let floor = match options.floor {
-            Floor::Y(y) => Floor::y_layer(y, &grid),
-            _ => 0,
-        };
-        if let Some((lo, hi)) = closure_box(&cells, &grid, floor) {
-            let seen = visibility(&views, &grid, lo, hi, margin, |_| false);
-            let dim = hi - lo + UVec3::ONE;
-            cells = close_cells(cells, &grid, (lo, hi), floor, options.min_hits, |c| {
-                let d = c - lo;
-                seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
-            });
-        }
+        cells = close_unseen(config, &options, &grid, cells, &filtered, angles);
     }
     drop(filtered);
     let mut mesh = voxoct_mesh::mesh_cells(&cells, &grid, &options)?;
@@ -362,14 +535,44 @@ pub fn reconstruct(
     if let Some(opts) = &params.simplify {
         voxoct_mesh::simplify(&mut mesh, opts);
     }
-    timings.mesh = t.elapsed();
+    Ok(mesh)
+}
 
-    Ok(Reconstruction {
-        mesh,
-        tree,
-        triangles_in,
-        timings,
-        disagreement_m,
+/// Closes what no frame saw by the smallest surface between the space seen empty and the
+/// solid ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]).
+fn close_unseen(
+    config: &ScannerConfig,
+    options: &MeshOptions,
+    grid: &GridSpec,
+    cells: Vec<Cell>,
+    filtered: &[DepthFrame],
+    angles: &[f32],
+) -> Vec<Cell> {
+    let views: Vec<CarveView<'_>> = filtered
+        .iter()
+        .zip(angles)
+        .map(|(frame, &angle)| CarveView {
+            frame,
+            intrinsics: config.sensor.intrinsics,
+            object_to_camera: config.rig.camera_to_object(angle).inverse(),
+        })
+        .collect();
+    // Two standard deviations of the sensor's depth noise at the object's distance,
+    // plus half a cell diagonal.
+    let distance = config.rig.sensor_position_m.length();
+    let margin = 2.0 * kinect_v1_sigma(distance) + 0.87 * grid.cell;
+    let floor = match options.floor {
+        Floor::Y(y) => Floor::y_layer(y, grid),
+        _ => 0,
+    };
+    let Some((lo, hi)) = closure_box(&cells, grid, floor) else {
+        return cells;
+    };
+    let seen = visibility(&views, grid, lo, hi, margin, |_| false);
+    let dim = hi - lo + UVec3::ONE;
+    close_cells(cells, grid, (lo, hi), floor, options.min_hits, |c| {
+        let d = c - lo;
+        seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
     })
 }
 
@@ -391,8 +594,9 @@ pub fn recorded_snapshots(scan: RecordedScan) -> (ScannerConfig, Vec<SnapshotFra
 
 /// Captures a simulated scan: `snapshots` equal turntable steps over a full turn, starting at
 /// 0°, with `frames` frames at each, from `kinect` (whose turntable angle it sets). Returns the
-/// scanner settings that match the simulator (its intrinsics, depth unit and rig, and the
-/// default clip box) and the snapshots, ready for [`reconstruct`].
+/// scanner settings that match the simulator ([`crate::session::scanner_config_of`]) and the
+/// snapshots, ready for [`reconstruct`]. (A [`crate::session::Session`] captures through a
+/// simulated turntable instead, whose angles are whole microsteps.)
 ///
 /// # Errors
 /// The simulator's own errors (none for a valid configuration).
@@ -401,22 +605,13 @@ pub fn simulate_scan(
     snapshots: u32,
     frames: u32,
 ) -> Result<(ScannerConfig, Vec<SnapshotFrames>), SourceError> {
-    let sim = *kinect.config();
-    let config = ScannerConfig {
-        sensor: SensorConfig {
-            intrinsics: sim.intrinsics,
-            depth_unit_m: sim.unit_m,
-        },
-        rig: sim.rig,
-        ..ScannerConfig::default()
-    };
-    let timeout = Duration::from_secs(5);
+    let config = crate::session::scanner_config_of(kinect.config());
     let mut out = Vec::with_capacity(snapshots as usize);
     for k in 0..snapshots {
         let angle_deg = 360.0 / snapshots as f32 * k as f32;
         kinect.set_turntable_angle_deg(angle_deg);
         let frames = (0..frames)
-            .map(|_| kinect.grab(timeout))
+            .map(|_| kinect.grab(crate::session::GRAB_TIMEOUT))
             .collect::<Result<_, _>>()?;
         out.push(SnapshotFrames { angle_deg, frames });
     }
@@ -435,28 +630,4 @@ fn half_resolution(frame: &DepthFrame) -> DepthFrame {
         }
     }
     out
-}
-
-/// Applies `f` to every item with its index, in parallel with the `parallel` feature,
-/// keeping the order; the first error wins.
-fn map_snapshots<I: Send, O: Send>(
-    items: Vec<I>,
-    f: impl Fn(usize, I) -> Result<O, PipelineError> + Sync + Send,
-) -> Result<Vec<O>, PipelineError> {
-    #[cfg(feature = "parallel")]
-    {
-        items
-            .into_par_iter()
-            .enumerate()
-            .map(|(i, x)| f(i, x))
-            .collect()
-    }
-    #[cfg(not(feature = "parallel"))]
-    {
-        items
-            .into_iter()
-            .enumerate()
-            .map(|(i, x)| f(i, x))
-            .collect()
-    }
 }

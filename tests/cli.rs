@@ -6,7 +6,8 @@ use std::process::Output;
 
 mod common;
 
-fn scan(args: &[&str], cwd: &Path) -> Option<Output> {
+/// Runs the `scan` example (built first when it is missing or stale).
+fn scan(args: &[&str], cwd: &Path) -> Output {
     common::run_example("scan", args, cwd)
 }
 
@@ -14,9 +15,7 @@ fn scan(args: &[&str], cwd: &Path) -> Option<Output> {
 /// no output file.
 fn assert_fails(args: &[&str], needle: &str) {
     let dir = tempfile::tempdir().unwrap();
-    let Some(out) = scan(&[args, &["--out", "x.stl", "-q"]].concat(), dir.path()) else {
-        return;
-    };
+    let out = scan(&[args, &["--out", "x.stl", "-q"]].concat(), dir.path());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{args:?} should fail");
     assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
@@ -41,7 +40,7 @@ fn assert_fails(args: &[&str], needle: &str) {
 #[test]
 fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(out) = scan(
+    let out = scan(
         &[
             "--builtin",
             "sphere",
@@ -62,9 +61,7 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
             "-q",
         ],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert!(
         out.status.success(),
         "{}",
@@ -115,22 +112,18 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
     assert!(std::fs::metadata(dir.path().join("p.png")).unwrap().len() > 1000);
 
     // The recorded scan reprocesses to the same mesh.
-    let again = common::example_bin("scan")
-        .and_then(|_| {
-            scan(
-                &[
-                    "--input",
-                    "rec",
-                    "--leaf",
-                    "0.003",
-                    "--out",
-                    "again.stl",
-                    "-q",
-                ],
-                dir.path(),
-            )
-        })
-        .unwrap();
+    let again = scan(
+        &[
+            "--input",
+            "rec",
+            "--leaf",
+            "0.003",
+            "--out",
+            "again.stl",
+            "-q",
+        ],
+        dir.path(),
+    );
     assert!(
         again.status.success(),
         "{}",
@@ -213,15 +206,14 @@ fn live_scan_without_hardware_is_a_clear_error() {
     assert_fails(&["--kinect", "--turntable", "127.0.0.1:1"], "Kinect");
     // libfreenect's own messages are quietened: our one line is all there is.
     let dir = tempfile::tempdir().unwrap();
-    if let Some(out) = scan(
+    let out = scan(
         &["--kinect", "--turntable", "127.0.0.1:1", "--out", "x.stl"],
         dir.path(),
-    ) {
-        let all = [out.stdout, out.stderr].concat();
-        let text = String::from_utf8_lossy(&all);
-        let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
-        assert_eq!(lines.len(), 1, "{text}");
-    }
+    );
+    let all = [out.stdout, out.stderr].concat();
+    let text = String::from_utf8_lossy(&all);
+    let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "{text}");
     assert_fails(&["--kinect-depth", "raw"], "--kinect");
     assert_fails(
         &[

@@ -9,7 +9,7 @@ use voxoct::stl::glam::Vec3;
 
 mod common;
 
-fn scan(args: &[&str], cwd: &Path) -> Option<Output> {
+fn scan(args: &[&str], cwd: &Path) -> Output {
     common::run_example("scan", args, cwd)
 }
 
@@ -28,9 +28,7 @@ fn every_output_format_is_written_z_up_on_the_bed() {
     let dir = tempfile::tempdir().unwrap();
     for name in ["s.stl", "s.3mf", "s.ply", "s.obj"] {
         let args = [&SMALL[..], &["--builtin", "sphere", "--out", name, "-q"]].concat();
-        let Some(out) = scan(&args, dir.path()) else {
-            return;
-        };
+        let out = scan(&args, dir.path());
         assert!(
             out.status.success(),
             "{name}: {}",
@@ -57,7 +55,7 @@ fn every_output_format_is_written_z_up_on_the_bed() {
         &["--builtin", "sphere", "--up", "y", "--out", "y.stl", "-q"],
     ]
     .concat();
-    let out = scan(&args, dir.path()).unwrap();
+    let out = scan(&args, dir.path());
     assert!(
         out.status.success(),
         "{}",
@@ -83,7 +81,7 @@ fn every_output_format_is_written_z_up_on_the_bed() {
         ],
     ]
     .concat();
-    let out = scan(&args, dir.path()).unwrap();
+    let out = scan(&args, dir.path());
     assert!(
         out.status.success(),
         "{}",
@@ -99,9 +97,7 @@ fn every_output_format_is_written_z_up_on_the_bed() {
 /// A clean failure naming `needle`, and nothing written.
 fn assert_fails(args: &[&str], needle: &str) {
     let dir = tempfile::tempdir().unwrap();
-    let Some(out) = scan(&[args, &["-q"]].concat(), dir.path()) else {
-        return;
-    };
+    let out = scan(&[args, &["-q"]].concat(), dir.path());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{args:?} should fail");
     assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
@@ -153,9 +149,7 @@ fn a_z_up_millimetre_model_keeps_its_size_and_orientation() {
     voxoct::stl::write_file(&model, &v, &t, voxoct::stl::StlFormat::Binary, 1.0).unwrap();
     let m = model.to_str().unwrap();
     let args = [&SMALL[..], &["--model", m, "--out", "t.stl"]].concat();
-    let Some(out) = scan(&args, dir.path()) else {
-        return;
-    };
+    let out = scan(&args, dir.path());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("40.0 × 30.0 × 70.0 mm"), "{stderr}");

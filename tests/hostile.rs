@@ -12,7 +12,7 @@ mod common;
 
 use common::example_bin as bin;
 
-fn run(name: &str, args: &[&str], cwd: &Path) -> Option<Output> {
+fn run(name: &str, args: &[&str], cwd: &Path) -> Output {
     common::run_example(name, args, cwd)
 }
 
@@ -29,7 +29,7 @@ const SMALL: &[&str] = &[
     "-q",
 ];
 
-fn scan(extra: &[&str], cwd: &Path) -> Option<Output> {
+fn scan(extra: &[&str], cwd: &Path) -> Output {
     run("scan", &[SMALL, extra].concat(), cwd)
 }
 
@@ -61,9 +61,7 @@ fn assert_refused(o: &Output, needles: &[&str]) {
 fn d01_out_through_a_symlink_to_a_device_writes_to_the_device() {
     let dir = tempfile::tempdir().unwrap();
     std::os::unix::fs::symlink("/dev/null", dir.path().join("fakenull")).unwrap();
-    let Some(o) = scan(&["--out", "fakenull"], dir.path()) else {
-        return;
-    };
+    let o = scan(&["--out", "fakenull"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let link = std::fs::symlink_metadata(dir.path().join("fakenull")).unwrap();
     assert!(link.file_type().is_symlink(), "the link was replaced");
@@ -75,9 +73,7 @@ fn d01_out_through_a_symlink_to_a_device_writes_to_the_device() {
 fn d01_stats_through_a_symlink_to_stdout_prints_the_json() {
     let dir = tempfile::tempdir().unwrap();
     std::os::unix::fs::symlink("/proc/self/fd/1", dir.path().join("s.json")).unwrap();
-    let Some(o) = scan(&["--out", "x.stl", "--stats", "s.json"], dir.path()) else {
-        return;
-    };
+    let o = scan(&["--out", "x.stl", "--stats", "s.json"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("\"mesh_triangles\""), "stdout: {out}");
@@ -94,9 +90,7 @@ fn d01_out_symlink_replaces_its_target_and_keeps_the_link() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("real.stl"), b"old").unwrap();
     std::os::unix::fs::symlink("real.stl", dir.path().join("link.stl")).unwrap();
-    let Some(o) = scan(&["--out", "link.stl"], dir.path()) else {
-        return;
-    };
+    let o = scan(&["--out", "link.stl"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         std::fs::symlink_metadata(dir.path().join("link.stl"))
@@ -115,9 +109,7 @@ fn d01_out_symlink_replaces_its_target_and_keeps_the_link() {
 #[test]
 fn d01_dash_writes_the_stl_to_stdout() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(o) = scan(&["--out", "-"], dir.path()) else {
-        return;
-    };
+    let o = scan(&["--out", "-"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(o.stdout.len() > 84);
     let count = u32::from_le_bytes(o.stdout[80..84].try_into().unwrap()) as usize;
@@ -137,9 +129,7 @@ fn d02_same_path_for_two_outputs_is_refused_naming_both_flags() {
         (["--out", "x.stl"], ["--stats", "./sub/../x.stl"]),
         (["--out", "x.stl"], ["--stats", "l.stl"]),
     ] {
-        let Some(o) = scan(&[&a[..], &b[..]].concat(), dir.path()) else {
-            return;
-        };
+        let o = scan(&[&a[..], &b[..]].concat(), dir.path());
         assert_refused(&o, &[a[0], b[0], "same file"]);
         assert!(!dir.path().join("same.stl").exists());
         assert!(!dir.path().join("x.stl").exists());
@@ -148,19 +138,17 @@ fn d02_same_path_for_two_outputs_is_refused_naming_both_flags() {
 }
 
 /// A recorded scan to read, made with the scanner itself.
-fn recorded(dir: &Path) -> Option<PathBuf> {
-    let o = scan(&["--out", "r.stl", "--record-to", "rec"], dir)?;
+fn recorded(dir: &Path) -> PathBuf {
+    let o = scan(&["--out", "r.stl", "--record-to", "rec"], dir);
     assert!(o.status.success(), "{}", stderr(&o));
-    Some(dir.join("rec"))
+    dir.join("rec")
 }
 
 #[test]
 fn d02_inspect_out_and_views_on_one_file_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(_) = recorded(dir.path()) else {
-        return;
-    };
-    let Some(o) = run(
+    recorded(dir.path());
+    let o = run(
         "inspect",
         &[
             "--input",
@@ -173,9 +161,7 @@ fn d02_inspect_out_and_views_on_one_file_is_refused() {
             "a.png",
         ],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert_refused(&o, &["--out", "--views"]);
     assert!(!dir.path().join("a.png").exists());
 }
@@ -195,13 +181,11 @@ fn d03_bad_output_directories_are_refused_before_any_work() {
     ] {
         // The default scan takes seconds; a refusal before the work takes milliseconds.
         let t = Instant::now();
-        let Some(o) = run(
+        let o = run(
             "scan",
             &["--out", "ok.stl", flag, path, "-q"][if flag == "--out" { 2 } else { 0 }..],
             dir.path(),
-        ) else {
-            return;
-        };
+        );
         assert_refused(&o, &[flag, needle]);
         let e = stderr(&o);
         assert_eq!(e.matches(path).count(), 1, "path printed once: {e}");
@@ -216,9 +200,7 @@ fn d03_bad_output_directories_are_refused_before_any_work() {
 #[test]
 fn d03_lod_deeper_than_the_octree_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(o) = scan(&["--out", "x.stl", "--lod", "30"], dir.path()) else {
-        return;
-    };
+    let o = scan(&["--out", "x.stl", "--lod", "30"], dir.path());
     assert_refused(&o, &["--lod"]);
 }
 
@@ -228,7 +210,7 @@ fn d03_lod_deeper_than_the_octree_is_refused_up_front() {
 fn d04_a_failing_side_output_replaces_nothing_and_names_the_users_path() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("out.stl"), b"old").unwrap();
-    let Some(o) = scan(
+    let o = scan(
         &[
             "--out",
             "out.stl",
@@ -238,9 +220,7 @@ fn d04_a_failing_side_output_replaces_nothing_and_names_the_users_path() {
             "p.png",
         ],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert_refused(&o, &["--stats /dev/full"]);
     let e = stderr(&o);
     assert!(!e.contains("tmp") && !e.contains("partial"), "{e}");
@@ -259,9 +239,7 @@ fn d04_a_failing_side_output_replaces_nothing_and_names_the_users_path() {
 fn d05_sigterm_while_a_temporary_file_exists_removes_it_and_keeps_the_old_output() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("k.stl"), b"old").unwrap();
-    let Some(bin) = bin("scan") else {
-        return;
-    };
+    let bin = bin("scan");
     let mut child = Command::new(bin)
         .args(["--builtin", "sphere", "--leaf", "0.002", "--ascii", "-q"])
         .args(["--out", "k.stl"])
@@ -304,15 +282,11 @@ fn d05_sigterm_while_a_temporary_file_exists_removes_it_and_keeps_the_old_output
 fn d06_calibrate_write_refuses_a_read_only_manifest_before_the_work() {
     use std::os::unix::fs::PermissionsExt;
     let dir = tempfile::tempdir().unwrap();
-    let Some(rec) = recorded(dir.path()) else {
-        return;
-    };
+    let rec = recorded(dir.path());
     let manifest = rec.join("scan.toml");
     std::fs::set_permissions(&manifest, std::fs::Permissions::from_mode(0o444)).unwrap();
     let before = std::fs::read(&manifest).unwrap();
-    let Some(o) = run("calibrate", &["--input", "rec", "--write"], dir.path()) else {
-        return;
-    };
+    let o = run("calibrate", &["--input", "rec", "--write"], dir.path());
     assert_refused(&o, &["read-only"]);
     assert_eq!(std::fs::read(&manifest).unwrap(), before);
     let mode = std::fs::metadata(&manifest).unwrap().permissions().mode() & 0o777;
@@ -323,7 +297,7 @@ fn d06_calibrate_write_refuses_a_read_only_manifest_before_the_work() {
 fn d06_calibrate_write_updates_a_symlinks_target_keeping_comments_keys_and_mode() {
     use std::os::unix::fs::PermissionsExt;
     let dir = tempfile::tempdir().unwrap();
-    let Some(o) = run(
+    let o = run(
         "scan",
         &[
             "--builtin",
@@ -341,9 +315,7 @@ fn d06_calibrate_write_updates_a_symlinks_target_keeping_comments_keys_and_mode(
             "rec",
         ],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let rec = dir.path().join("rec");
     // The manifest lives elsewhere, with a comment, an unknown key and mode 0640.
@@ -355,9 +327,7 @@ fn d06_calibrate_write_updates_a_symlinks_target_keeping_comments_keys_and_mode(
     std::fs::set_permissions(&real, std::fs::Permissions::from_mode(0o640)).unwrap();
     std::fs::remove_file(rec.join("scan.toml")).unwrap();
     std::os::unix::fs::symlink("../store/scan.toml", rec.join("scan.toml")).unwrap();
-    let Some(o) = run("calibrate", &["--input", "rec", "--write"], dir.path()) else {
-        return;
-    };
+    let o = run("calibrate", &["--input", "rec", "--write"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         std::fs::symlink_metadata(rec.join("scan.toml"))
@@ -385,11 +355,9 @@ fn d06_calibrate_write_updates_a_symlinks_target_keeping_comments_keys_and_mode(
 #[test]
 fn d07a_record_to_a_directory_holding_a_scan_is_refused_unless_forced() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(rec) = recorded(dir.path()) else {
-        return;
-    };
+    let rec = recorded(dir.path());
     let manifest_before = std::fs::read(rec.join("scan.toml")).unwrap();
-    let Some(o) = run(
+    let o = run(
         "scan",
         &[
             "--builtin",
@@ -407,9 +375,7 @@ fn d07a_record_to_a_directory_holding_a_scan_is_refused_unless_forced() {
             "rec",
         ],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert_refused(&o, &["--record-to", "--force"]);
     assert_eq!(
         std::fs::read(rec.join("scan.toml")).unwrap(),
@@ -417,7 +383,7 @@ fn d07a_record_to_a_directory_holding_a_scan_is_refused_unless_forced() {
     );
     assert!(!dir.path().join("c.stl").exists());
 
-    let Some(o) = run(
+    let o = run(
         "scan",
         &[
             "--builtin",
@@ -436,23 +402,19 @@ fn d07a_record_to_a_directory_holding_a_scan_is_refused_unless_forced() {
             "--force",
         ],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let frames = std::fs::read_dir(rec.join("frames")).unwrap().count();
     assert_eq!(frames, 2, "the old frames are gone, the new two remain");
 
     std::fs::write(dir.path().join("other.txt"), b"x").unwrap();
-    let Some(o) = scan(&["--out", "y.stl", "--record-to", "."], dir.path()) else {
-        return;
-    };
+    let o = scan(&["--out", "y.stl", "--record-to", "."], dir.path());
     assert_refused(&o, &["--record-to", "not empty"]);
 }
 
 /// Runs an example with a bound on its time: a hang is a failure, not a stuck test.
-fn run_bounded(name: &str, args: &[&str], cwd: &Path, limit: Duration) -> Option<Output> {
-    let mut child = Command::new(bin(name)?)
+fn run_bounded(name: &str, args: &[&str], cwd: &Path, limit: Duration) -> Output {
+    let mut child = Command::new(bin(name))
         .args(args)
         .current_dir(cwd)
         .stdout(Stdio::piped())
@@ -468,7 +430,7 @@ fn run_bounded(name: &str, args: &[&str], cwd: &Path, limit: Duration) -> Option
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-    Some(child.wait_with_output().unwrap())
+    child.wait_with_output().unwrap()
 }
 
 /// Rewrites the recorded scan's manifest with `edit`.
@@ -483,9 +445,7 @@ fn edit_manifest(rec: &Path, edit: impl FnOnce(String) -> String) {
 #[test]
 fn d07_a_manifest_listing_one_frame_thousands_of_times_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(rec) = recorded(dir.path()) else {
-        return;
-    };
+    let rec = recorded(dir.path());
     let many = vec!["\"frames/s000_f00.png\""; 2000].join(", ");
     edit_manifest(&rec, |t| {
         t.lines()
@@ -499,7 +459,7 @@ fn d07_a_manifest_listing_one_frame_thousands_of_times_is_refused_up_front() {
             .collect::<Vec<_>>()
             .join("\n")
     });
-    let Some(o) = run_bounded(
+    let o = run_bounded(
         "scan",
         &[
             "--input",
@@ -512,9 +472,7 @@ fn d07_a_manifest_listing_one_frame_thousands_of_times_is_refused_up_front() {
         ],
         dir.path(),
         Duration::from_secs(60),
-    ) else {
-        return;
-    };
+    );
     assert_refused(&o, &["needs about", "--max-memory"]);
 }
 
@@ -538,22 +496,18 @@ fn png_header_only(w: u32, h: u32) -> Vec<u8> {
 #[test]
 fn d08_a_png_header_claiming_a_huge_frame_is_refused_before_decoding() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(rec) = recorded(dir.path()) else {
-        return;
-    };
+    let rec = recorded(dir.path());
     std::fs::write(
         rec.join("frames/s000_f00.png"),
         png_header_only(100_000, 100_000),
     )
     .unwrap();
-    let Some(o) = run_bounded(
+    let o = run_bounded(
         "scan",
         &["--input", "rec", "--out", "x.stl", "-q"],
         dir.path(),
         Duration::from_secs(60),
-    ) else {
-        return;
-    };
+    );
     assert_refused(&o, &["100000x100000", "s000_f00.png"]);
 }
 
@@ -564,14 +518,12 @@ fn d09_flags_that_would_need_terabytes_are_refused_with_the_estimate() {
         (&["--snapshots", "3600", "--frames", "1000"][..], "frames"),
         (&["--leaf", "1e-5"][..], "--leaf"),
     ] {
-        let Some(o) = run_bounded(
+        let o = run_bounded(
             "scan",
             &[args, &["--out", "x.stl", "-q"]].concat(),
             dir.path(),
             Duration::from_secs(60),
-        ) else {
-            return;
-        };
+        );
         assert_refused(&o, &["needs about", needle, "--max-memory"]);
     }
 }
@@ -580,14 +532,12 @@ fn d09_flags_that_would_need_terabytes_are_refused_with_the_estimate() {
 fn d10_a_model_that_is_not_a_regular_file_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     std::os::unix::fs::symlink("/dev/zero", dir.path().join("zero.stl")).unwrap();
-    let Some(o) = run_bounded(
+    let o = run_bounded(
         "scan",
         &["--model", "zero.stl", "--out", "x.stl", "-q"],
         dir.path(),
         Duration::from_secs(60),
-    ) else {
-        return;
-    };
+    );
     assert_refused(&o, &["--model", "not a regular file"]);
 }
 
@@ -596,9 +546,7 @@ fn d10_a_model_that_is_not_a_regular_file_is_refused() {
 #[test]
 fn d11_frame_paths_outside_the_scan_or_not_regular_files_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(rec) = recorded(dir.path()) else {
-        return;
-    };
+    let rec = recorded(dir.path());
     let original = std::fs::read_to_string(rec.join("scan.toml")).unwrap();
     std::fs::copy(
         rec.join("frames/s000_f00.png"),
@@ -613,18 +561,14 @@ fn d11_frame_paths_outside_the_scan_or_not_regular_files_are_refused() {
             original.replace("frames/s000_f00.png", bad),
         )
         .unwrap();
-        let Some(o) = run_bounded("scan", &input, dir.path(), Duration::from_secs(60)) else {
-            return;
-        };
+        let o = run_bounded("scan", &input, dir.path(), Duration::from_secs(60));
         assert_refused(&o, &["inside the scan directory"]);
     }
     std::fs::write(rec.join("scan.toml"), &original).unwrap();
     // Outside through a symlink.
     std::fs::remove_file(rec.join("frames/s000_f00.png")).unwrap();
     std::os::unix::fs::symlink("../../outside.png", rec.join("frames/s000_f00.png")).unwrap();
-    let Some(o) = run_bounded("scan", &input, dir.path(), Duration::from_secs(60)) else {
-        return;
-    };
+    let o = run_bounded("scan", &input, dir.path(), Duration::from_secs(60));
     assert_refused(&o, &["leaves the scan directory"]);
     // A FIFO does not hang the run.
     std::fs::remove_file(rec.join("frames/s000_f00.png")).unwrap();
@@ -633,9 +577,7 @@ fn d11_frame_paths_outside_the_scan_or_not_regular_files_are_refused() {
         .status()
         .unwrap();
     assert!(made.success());
-    let Some(o) = run_bounded("scan", &input, dir.path(), Duration::from_secs(60)) else {
-        return;
-    };
+    let o = run_bounded("scan", &input, dir.path(), Duration::from_secs(60));
     assert_refused(&o, &["not a regular file"]);
 }
 
@@ -643,7 +585,7 @@ fn d11_frame_paths_outside_the_scan_or_not_regular_files_are_refused() {
 
 /// Starts the server on a free loopback port; returns the child and the address it printed.
 fn server(args: &[&str], envs: &[(&str, &str)]) -> Option<(std::process::Child, String)> {
-    let mut cmd = Command::new(bin("turntable_server")?);
+    let mut cmd = Command::new(bin("turntable_server"));
     cmd.args(["--listen", "127.0.0.1:0"])
         .args(args)
         .env_remove("VOXOCT_TURNTABLE_TOKEN")
@@ -699,22 +641,18 @@ fn wait_bounded(child: &mut std::process::Child, limit: Duration) -> std::proces
 #[test]
 fn d12_a_nonsensical_sim_speed_is_refused_at_start() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(o) = run_bounded(
+    let o = run_bounded(
         "turntable_server",
         &["--listen", "127.0.0.1:0", "--sim-speed", "1e-20"],
         dir.path(),
         Duration::from_secs(30),
-    ) else {
-        return;
-    };
+    );
     assert_refused(&o, &["--sim-speed"]);
 }
 
 #[test]
 fn d14_sigint_during_a_turn_finishes_it_replies_and_exits_0() {
-    let Some((mut child, addr)) = server(&["--sim-speed", "90"], &[]) else {
-        return;
-    };
+    let (mut child, addr) = server(&["--sim-speed", "90"], &[]).expect("the server starts");
     let (mut s, mut r) = connect(&addr);
     send(&mut s, "VOXOCT-TT/1");
     assert!(read_line(&mut r).starts_with("OK "));
@@ -737,9 +675,8 @@ fn d14_sigint_during_a_turn_finishes_it_replies_and_exits_0() {
 
 #[test]
 fn d15_the_server_reads_the_token_from_voxoct_turntable_token() {
-    let Some((mut child, addr)) = server(&[], &[("VOXOCT_TURNTABLE_TOKEN", "s3cret")]) else {
-        return;
-    };
+    let (mut child, addr) =
+        server(&[], &[("VOXOCT_TURNTABLE_TOKEN", "s3cret")]).expect("the server starts");
     let (mut s, mut r) = connect(&addr);
     send(&mut s, "VOXOCT-TT/1");
     assert!(read_line(&mut r).starts_with("ERR UNAUTHORISED"));
@@ -755,9 +692,7 @@ fn d15_the_server_reads_the_token_from_voxoct_turntable_token() {
     assert!(wait_bounded(&mut child, Duration::from_secs(10)).success());
 
     let dir = tempfile::tempdir().unwrap();
-    let Some(bin) = bin("turntable_server") else {
-        return;
-    };
+    let bin = bin("turntable_server");
     let o = Command::new(bin)
         .args(["--listen", "127.0.0.1:0"])
         .env_remove("VOXOCT_TURNTABLE_TOKEN")
@@ -773,9 +708,7 @@ fn d15_the_server_reads_the_token_from_voxoct_turntable_token() {
 #[test]
 fn d16_unbounded_values_and_flags_of_another_source_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(_) = recorded(dir.path()) else {
-        return;
-    };
+    recorded(dir.path());
     for (args, needles) in [
         (&["--smooth", "4294967295"][..], &["--smooth"][..]),
         (&["--min-hits", "4294967295"][..], &["--min-hits"][..]),
@@ -796,14 +729,12 @@ fn d16_unbounded_values_and_flags_of_another_source_are_refused() {
             &["--seed", "does not apply"][..],
         ),
     ] {
-        let Some(o) = run_bounded(
+        let o = run_bounded(
             "scan",
             &[args, &["--out", "x.stl", "-q"]].concat(),
             dir.path(),
             Duration::from_secs(60),
-        ) else {
-            return;
-        };
+        );
         assert_refused(&o, needles);
     }
 }
@@ -811,9 +742,7 @@ fn d16_unbounded_values_and_flags_of_another_source_are_refused() {
 #[test]
 fn d17_messages_say_what_is_wrong() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(rec) = recorded(dir.path()) else {
-        return;
-    };
+    let rec = recorded(dir.path());
     std::fs::write(dir.path().join("model.stl"), b"solid x\nendsolid x\n").unwrap();
     let original = std::fs::read_to_string(rec.join("scan.toml")).unwrap();
     let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
@@ -827,14 +756,12 @@ fn d17_messages_say_what_is_wrong() {
         } else {
             [&args[..], SMALL].concat()
         };
-        let Some(o) = run_bounded(
+        let o = run_bounded(
             "scan",
             &[&args[..], &["--out", "x.stl"]].concat(),
             dir.path(),
             Duration::from_secs(120),
-        ) else {
-            return;
-        };
+        );
         assert_refused(&o, &needles);
         assert!(
             !stderr(&o).contains("is the object inside the clip box"),
@@ -856,13 +783,11 @@ fn d17_messages_say_what_is_wrong() {
         w.finish().unwrap();
         std::fs::write(zero_dir.join(format!("frames/s{k:03}_f00.png")), buf).unwrap();
     }
-    let Some(o) = run(
+    let o = run(
         "scan",
         &["--input", "zero", "--out", "x.stl", "-q"],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert_refused(&o, &["no frame had a valid depth pixel"]);
     // Out of range for f32, not "non-finite"; a subnormal unit is out of range too.
     for (key, to) in [("depth_unit_m", "1e-45"), ("angle_deg", "1e300")] {
@@ -880,13 +805,11 @@ fn d17_messages_say_what_is_wrong() {
             .collect::<Vec<_>>()
             .join("\n");
         std::fs::write(rec.join("scan.toml"), edited).unwrap();
-        let Some(o) = run(
+        let o = run(
             "scan",
             &["--input", "rec", "--out", "x.stl", "-q"],
             dir.path(),
-        ) else {
-            return;
-        };
+        );
         assert_refused(&o, &[key, "out of range"]);
     }
     // Control bytes in a frame name are escaped; a huge message is cut.
@@ -895,13 +818,11 @@ fn d17_messages_say_what_is_wrong() {
         original.replacen("frames/s000_f00.png", "frames/\u{1b}[31mred\u{7}.png", 1),
     )
     .unwrap();
-    let Some(o) = run(
+    let o = run(
         "scan",
         &["--input", "rec", "--out", "x.stl", "-q"],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert!(
         !o.stderr.contains(&0x1b) && !o.stderr.contains(&0x07),
         "{}",
@@ -910,17 +831,15 @@ fn d17_messages_say_what_is_wrong() {
     assert!(stderr(&o).contains("\\u{1b}"), "{}", stderr(&o));
     let deep = format!("x = {}1{}\n", "[".repeat(20_000), "]".repeat(20_000));
     std::fs::write(rec.join("scan.toml"), format!("{deep}{original}")).unwrap();
-    let Some(o) = run(
+    let o = run(
         "scan",
         &["--input", "rec", "--out", "x.stl", "-q"],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert!(!o.status.success());
     assert!(o.stderr.len() < 5000, "{} bytes", o.stderr.len());
     // inspect --scale-mm takes a number, and a negative one is refused as such.
-    let Some(o) = run(
+    let o = run(
         "inspect",
         &[
             "--input",
@@ -935,9 +854,7 @@ fn d17_messages_say_what_is_wrong() {
             "d.png",
         ],
         dir.path(),
-    ) else {
-        return;
-    };
+    );
     assert_refused(&o, &["--scale-mm must be a positive"]);
 }
 

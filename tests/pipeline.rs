@@ -276,7 +276,7 @@ fn bad_parameters_are_errors_not_panics() {
                 max_edge_sq: -1.0,
                 ..Params::default()
             },
-            "max_edge_sq",
+            "--threshold",
         ),
         (
             Params {
@@ -289,6 +289,8 @@ fn bad_parameters_are_errors_not_panics() {
         let e = reconstruct(&config, snapshots.clone(), &params, |_| {})
             .unwrap_err()
             .to_string();
+        // The one check, made before any work, is the one a tool makes up front.
+        assert_eq!(params.validate().unwrap_err().to_string(), e);
         assert!(
             e.to_lowercase().contains(needle),
             "{e:?} should mention {needle}"

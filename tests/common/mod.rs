@@ -2,36 +2,66 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::sync::Mutex;
 
-/// The example binary `name` that `cargo test` built next to this test, or `None` with a
-/// note when only the test target was built: `cargo test --test NAME` builds no examples,
-/// `cargo test --workspace` (the README's command, and CI's) does.
-pub fn example_bin(name: &str) -> Option<PathBuf> {
+/// The example binary `name`, built now if it is missing or stale: `cargo build --example
+/// NAME` with the profile and features this test was built with, so that `cargo test --test
+/// NAME` runs what it tests instead of skipping.
+///
+/// # Panics
+/// When the example does not build: the test fails, it never passes silently.
+#[must_use]
+pub fn example_bin(name: &str) -> PathBuf {
+    static BUILT: Mutex<Vec<String>> = Mutex::new(Vec::new());
     let exe = std::env::current_exe().unwrap();
-    // target/<profile>/deps/<test>-<hash> → target/<profile>/examples/<name>
+    // target/<profile dir>/deps/<test>-<hash> → target/<profile dir>/examples/<name>
     let dir = exe.parent().and_then(Path::parent).unwrap();
     let bin = dir
         .join("examples")
         .join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
-    if !bin.exists() {
-        eprintln!(
-            "SKIPPED: {} is not built; run `cargo test --workspace`",
-            bin.display()
-        );
-        return None;
+    let mut built = BUILT
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if !built.iter().any(|b| b == name) {
+        // `cargo test` builds its targets with the `test` profile (`bench` with `--release`).
+        let profile = match dir.file_name().and_then(|n| n.to_str()) {
+            Some("debug") => "test",
+            Some("release") => "bench",
+            Some(other) => other,
+            None => "test",
+        };
+        let mut features = Vec::new();
+        for (on, feature) in [
+            (cfg!(feature = "parallel"), "parallel"),
+            (cfg!(feature = "freenect"), "freenect"),
+            (cfg!(feature = "gpio"), "gpio"),
+        ] {
+            if on {
+                features.push(feature);
+            }
+        }
+        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        let status = Command::new(cargo)
+            .args(["build", "--quiet", "--example", name, "--profile", profile])
+            .args(["--no-default-features", "--features", &features.join(",")])
+            .arg("--manifest-path")
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml"))
+            .status()
+            .expect("cargo runs");
+        assert!(status.success(), "cargo build --example {name} failed");
+        built.push(name.to_owned());
     }
-    Some(bin)
+    assert!(bin.exists(), "{} was not built", bin.display());
+    bin
 }
 
-/// Runs the example `name` with `args` in `cwd` (without a turntable token from the
-/// environment), or `None` when it is not built.
-pub fn run_example(name: &str, args: &[&str], cwd: &Path) -> Option<Output> {
-    Some(
-        Command::new(example_bin(name)?)
-            .args(args)
-            .current_dir(cwd)
-            .env_remove("VOXOCT_TURNTABLE_TOKEN")
-            .output()
-            .unwrap(),
-    )
+/// Runs the example `name` ([`example_bin`]) with `args` in `cwd`, without a turntable
+/// token from the environment.
+pub fn run_example(name: &str, args: &[&str], cwd: &Path) -> Output {
+    Command::new(example_bin(name))
+        .args(args)
+        .current_dir(cwd)
+        .env_remove("VOXOCT_TURNTABLE_TOKEN")
+        .output()
+        .unwrap()
 }

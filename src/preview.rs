@@ -1,9 +1,22 @@
 //! A small z-buffer rasteriser: the mesh seen from three sides, shaded, as one PNG.
+//!
+//! ```
+//! use voxoct::core::glam::Vec3;
+//! // One triangle facing the front view.
+//! let vertices = [Vec3::ZERO, Vec3::X, Vec3::Y];
+//! let img = voxoct::preview::render(&vertices, &[[0, 1, 2]]);
+//! assert_eq!((img.width, img.height), (3 * voxoct::preview::VIEW as u32, voxoct::preview::VIEW as u32));
+//! let mut png = Vec::new();
+//! voxoct::preview::write_preview(&mut png, &vertices, &[[0, 1, 2]])?;
+//! assert!(png.starts_with(b"\x89PNG"));
+//! # Ok::<(), std::io::Error>(())
+//! ```
 
-use voxoct::core::glam::Vec3;
+use voxoct_core::glam::Vec3;
+use voxoct_depth::image::{RgbImage, write_png_to};
 
 /// Pixels per view (square).
-const VIEW: usize = 420;
+pub const VIEW: usize = 420;
 /// Margin around the model inside a view, pixels.
 const MARGIN: f32 = 16.0;
 
@@ -32,13 +45,11 @@ const VIEWS: [View; 3] = [
     },
 ];
 
-/// Renders `vertices`/`triangles` from the front, the side and the top into an RGB image
-/// `3 * VIEW` wide and `VIEW` high, and writes it as PNG to `w_out`.
-pub fn write_preview(
-    w_out: &mut dyn std::io::Write,
-    vertices: &[Vec3],
-    triangles: &[[u32; 3]],
-) -> std::io::Result<()> {
+/// Renders `vertices`/`triangles` (outward-oriented) from the front, the side and the
+/// top into an RGB image `3 * VIEW` wide and `VIEW` high: faces lit by a light over the
+/// viewer's shoulder, back faces dark red, on a soft grey gradient.
+#[must_use]
+pub fn render(vertices: &[Vec3], triangles: &[[u32; 3]]) -> RgbImage {
     let (w, h) = (3 * VIEW, VIEW);
     let mut rgb = vec![0u8; w * h * 3];
     for (i, px) in rgb.chunks_exact_mut(3).enumerate() {
@@ -58,14 +69,24 @@ pub fn write_preview(
             rgb[o..o + 3].copy_from_slice(&[150, 150, 160]);
         }
     }
-    let mut enc = png::Encoder::new(w_out, w as u32, h as u32);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut writer = enc.write_header().map_err(std::io::Error::other)?;
-    writer
-        .write_image_data(&rgb)
-        .map_err(std::io::Error::other)?;
-    writer.finish().map_err(std::io::Error::other)
+    RgbImage {
+        width: w as u32,
+        height: h as u32,
+        data: rgb,
+    }
+}
+
+/// [`render`]s the mesh and writes the picture as PNG to `w_out`
+/// ([`voxoct_depth::image::write_png_to`]).
+///
+/// # Errors
+/// The writer's I/O errors.
+pub fn write_preview(
+    w_out: &mut dyn std::io::Write,
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+) -> std::io::Result<()> {
+    write_png_to(w_out, &render(vertices, triangles))
 }
 
 fn render_view(
@@ -151,4 +172,23 @@ fn render_view(
 /// Twice the signed area of the screen triangle (a, b, p).
 fn edge(a: Vec3, b: Vec3, p: Vec3) -> f32 {
     (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_front_facing_triangle_is_lit_and_the_background_stays_grey() {
+        let vertices = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let img = render(&vertices, &[[0, 1, 2]]);
+        // The front view's centre column, a third of the way up the triangle's bounding box.
+        let centre = VIEW as u32 / 3;
+        let px = img.get(centre, VIEW as u32 * 2 / 3).unwrap();
+        assert_ne!(px[0], px[1], "front face is shaded blue-grey, got {px:?}");
+        // A corner is background: grey with a touch of blue.
+        let bg = img.get(2, 2).unwrap();
+        assert_eq!(bg[0], bg[1]);
+        assert_eq!(bg[2], bg[0].saturating_add(8));
+    }
 }
