@@ -6,11 +6,11 @@
 //! | module | crate | what |
 //! |---|---|---|
 //! | [`core`] | `voxoct-core` | triangle/box overlap, the sparse octree |
-//! | [`mesh`] | `voxoct-mesh` | pseudo-voxels, marching tetrahedra, closed-manifold check |
+//! | [`mesh`] | `voxoct-mesh` | pseudo-voxels, marching tetrahedra, closure, smoothing, valid-solid check |
 //! | [`depth`] | `voxoct-depth` | frames, filters, rig transform, triangulation, recorded scans |
 //! | [`kinect`] | `voxoct-kinect` | depth sources: simulated Kinect v1, fakenect, live (`freenect`) |
 //! | [`turntable`] | `voxoct-turntable` | turntables: simulated, stepper on GPIO (`gpio`), TCP |
-//! | [`stl`] | `voxoct-stl` | STL reading and writing |
+//! | [`stl`] | `voxoct-stl` | mesh files: STL, 3MF, PLY, OBJ; the atomic file writer |
 //!
 //! Above them, what a scanning tool needs: [`session`] (where the frames come from: a
 //! simulated or live capture over a turntable, a recorded scan, a fakenect recording),
@@ -62,3 +62,9 @@ pub mod preview;
 pub mod session;
 
 pub use par::threads;
+
+/// The README's code blocks, compiled and run as doctests (`cargo test --doc`), so that
+/// what it shows works as pasted.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

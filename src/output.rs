@@ -570,10 +570,10 @@ fn remove_temp(temp: &Path) {
 
 /// Replaces `target` by the synced temporary file `temp` (same directory) and makes the
 /// rename durable.
-// TODO(issue15): the one public atomic writer is voxoct-stl's (refusing to replace a
-// symlink or device, fsync); this transaction of several outputs creates its temporaries
-// before the work and renames them together after it, which a one-shot writer cannot do.
-// Move this step onto voxoct-stl's primitives once they expose "publish a prepared file".
+///
+/// Not `voxoct_stl::write_atomic`, which writes and renames in one call: a run's outputs are
+/// all or nothing, so their temporaries are written first and renamed together at the end,
+/// and the tools follow symlinks and write into devices where that one refuses them.
 fn replace_with(target: &Path, temp: &Path) -> io::Result<()> {
     fs::rename(temp, target)?;
     forget_temp(temp);

@@ -106,7 +106,7 @@ pub struct Args {
     #[arg(
         long,
         value_name = "T",
-        env = "VOXOCT_TURNTABLE_TOKEN",
+        env = voxoct::turntable::TOKEN_ENV,
         hide_env_values = true,
         help_heading = "Source"
     )]

@@ -7,7 +7,11 @@ use std::path::Path;
 /// synced, given the old file's permissions and renamed over `path`. A symlink is followed
 /// (its target is replaced, the link stays); a path that exists and is not a regular file
 /// (a device, a FIFO) is written to directly, never replaced.
-// TODO(issue15): use voxoct-stl's atomic writer once it is the one public implementation.
+///
+/// Not `voxoct_stl::write_atomic`: that one refuses symlinks and devices (a library writing
+/// mesh files must not replace what it did not create), while the tools promise to follow a
+/// symlink and to write into a device (`calibrate --write` on a linked `scan.toml`,
+/// `inspect --out /dev/stdout`); and voxoct-depth does not depend on voxoct-stl.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write;
     let original = path;

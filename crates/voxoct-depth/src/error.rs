@@ -52,9 +52,10 @@ pub enum FrameError {
         found: f32,
     },
 
-    /// A parameter passed by the caller is out of range.
-    #[error("invalid parameter `{name}`: {reason}")]
-    InvalidParameter {
+    /// An argument passed by the caller is out of range (the same name as the other
+    /// crates' `InvalidArgument`).
+    #[error("invalid argument `{name}`: {reason}")]
+    InvalidArgument {
         /// Parameter name.
         name: &'static str,
         /// Why it is refused.

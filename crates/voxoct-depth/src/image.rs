@@ -262,7 +262,7 @@ pub fn difference_image(
     let scale = match scale_m {
         Some(s) if s.is_finite() && s > 0.0 => s,
         Some(s) => {
-            return Err(FrameError::InvalidParameter {
+            return Err(FrameError::InvalidArgument {
                 name: "scale_m",
                 reason: format!("{s} is not a positive number"),
             });

@@ -67,7 +67,7 @@ impl Snapshot {
             if x.is_finite() && x > 0.0 {
                 Ok(())
             } else {
-                Err(FrameError::InvalidParameter {
+                Err(FrameError::InvalidArgument {
                     name,
                     reason: format!("must be a positive number, got {x}"),
                 })
@@ -77,7 +77,7 @@ impl Snapshot {
         positive("fy", intr.fy)?;
         for (name, x) in [("cx", intr.cx), ("cy", intr.cy), ("angle_deg", angle_deg)] {
             if !x.is_finite() {
-                return Err(FrameError::InvalidParameter {
+                return Err(FrameError::InvalidArgument {
                     name,
                     reason: format!("must be finite, got {x}"),
                 });
@@ -85,7 +85,7 @@ impl Snapshot {
         }
         let t = rig.camera_to_object(angle_deg);
         if !(t.matrix3.is_finite() && t.translation.is_finite()) {
-            return Err(FrameError::InvalidParameter {
+            return Err(FrameError::InvalidArgument {
                 name: "rig",
                 reason: format!("transform is not finite: {rig:?}"),
             });

@@ -298,7 +298,7 @@ fn axis_needs_two_angles() {
     assert!(
         matches!(
             err,
-            Err(CalibError::InvalidOption {
+            Err(CalibError::InvalidArgument {
                 name: "scales_m",
                 ..
             })

@@ -101,7 +101,7 @@ fn scan_writer_writes_snapshot_by_snapshot() {
     // Bad snapshots are refused and leave the scan as it was.
     assert!(matches!(
         w.add_snapshot(f32::NAN, &b),
-        Err(ScanError::Frame(FrameError::InvalidParameter {
+        Err(ScanError::Frame(FrameError::InvalidArgument {
             name: "angle_deg",
             ..
         }))

@@ -547,17 +547,13 @@ impl FakenectWriter {
     }
 }
 
-/// Writes `bytes` to `path` through a temporary file beside it.
-// TODO(issue15): use voxoct-stl's atomic writer (it also syncs the file before the rename).
+/// Writes `bytes` to `path` atomically ([`voxoct_stl::write_atomic`]: a synced temporary
+/// file beside it, renamed over it; never a partial file, never a replaced symlink or device).
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SourceError> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|source| {
-            let _ = std::fs::remove_file(&tmp);
-            SourceError::Write {
-                path: path.to_owned(),
-                source,
-            }
-        })
+    voxoct_stl::write_atomic(path, |w| std::io::Write::write_all(w, bytes)).map_err(|source| {
+        SourceError::Write {
+            path: path.to_owned(),
+            source,
+        }
+    })
 }

@@ -273,7 +273,7 @@ fn agreement(
 }
 
 fn check_axis_options(opts: &AxisOptions) -> Result<(), CalibError> {
-    let bad = |name, reason: String| Err(CalibError::InvalidOption { name, reason });
+    let bad = |name, reason: String| Err(CalibError::InvalidArgument { name, reason });
     if !(opts.margin_m.is_finite() && opts.margin_m >= 0.0) {
         return bad(
             "margin_m",

@@ -45,9 +45,9 @@ pub enum CalibError {
         reason: String,
     },
 
-    /// An option out of range.
-    #[error("invalid option `{name}`: {reason}")]
-    InvalidOption {
+    /// An option out of range (the same name as the other crates' `InvalidArgument`).
+    #[error("invalid argument `{name}`: {reason}")]
+    InvalidArgument {
         /// The option.
         name: &'static str,
         /// Why it is refused.

@@ -143,7 +143,7 @@ pub(crate) fn fit_plane_ransac(
     opts: &RansacOptions,
 ) -> Result<PlaneFit, CalibError> {
     if !(opts.threshold_m.is_finite() && opts.threshold_m > 0.0) {
-        return Err(CalibError::InvalidOption {
+        return Err(CalibError::InvalidArgument {
             name: "threshold_m",
             reason: format!("{} is not a positive distance", opts.threshold_m),
         });

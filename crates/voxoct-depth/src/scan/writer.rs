@@ -32,7 +32,7 @@ impl ScanWriter {
     /// Writes one snapshot's frames and the updated manifest.
     pub fn add_snapshot(&mut self, angle_deg: f32, frames: &[DepthFrame]) -> Result<(), ScanError> {
         if !(angle_deg.is_finite() && angle_deg.abs() <= MAX_ABS_ANGLE_DEG) {
-            return Err(FrameError::InvalidParameter {
+            return Err(FrameError::InvalidArgument {
                 name: "angle_deg",
                 reason: format!("{angle_deg} is not within ±{MAX_ABS_ANGLE_DEG}°"),
             }
