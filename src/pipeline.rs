@@ -291,6 +291,11 @@ pub struct Reconstruction {
     /// when not measured or not measurable (too few points, one snapshot). Compare it with
     /// [`disagreement_explained_m`].
     pub disagreement_m: Option<f32>,
+    /// Whether the mesh stage proved the mesh free of self-intersections
+    /// ([`voxoct_mesh::mesh_cells_certified`]: the smoothing's untangling ran the exact test
+    /// over every triangle; dropping small pieces and simplifying keep it). `false`: not
+    /// checked — run [`Mesh::self_intersecting_triangles`].
+    pub self_intersection_free: bool,
 }
 
 /// The largest snapshot disagreement ([`Reconstruction::disagreement_m`]) that the sensor's
@@ -392,7 +397,7 @@ pub fn reconstruct(
 
     on_stage(Stage::Mesh);
     let t = Instant::now();
-    let mesh = mesh_tree(config, params, &tree, filtered, &angles)?;
+    let (mesh, self_intersection_free) = mesh_tree(config, params, &tree, filtered, &angles)?;
     timings.mesh = t.elapsed();
 
     Ok(Reconstruction {
@@ -401,6 +406,7 @@ pub fn reconstruct(
         triangles_in,
         timings,
         disagreement_m,
+        self_intersection_free,
     })
 }
 
@@ -509,7 +515,7 @@ fn mesh_tree(
     tree: &Octree,
     filtered: Vec<DepthFrame>,
     angles: &[f32],
-) -> Result<Mesh, PipelineError> {
+) -> Result<(Mesh, bool), PipelineError> {
     let depth = tree
         .depth()
         .checked_sub(params.lod)
@@ -529,13 +535,15 @@ fn mesh_tree(
         cells = close_unseen(config, &options, &grid, cells, &filtered, angles);
     }
     drop(filtered);
-    let mut mesh = voxoct_mesh::mesh_cells(&cells, &grid, &options)?;
+    let (mut mesh, certified) = voxoct_mesh::mesh_cells_certified(&cells, &grid, &options)?;
     drop(cells);
+    // Removing whole pieces cannot make two triangles intersect; simplification refuses
+    // every collapse that would (its own exact check).
     mesh.remove_pieces_below_fraction(params.min_piece_fraction);
     if let Some(opts) = &params.simplify {
         voxoct_mesh::simplify(&mut mesh, opts);
     }
-    Ok(mesh)
+    Ok((mesh, certified))
 }
 
 /// Closes what no frame saw by the smallest surface between the space seen empty and the

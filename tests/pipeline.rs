@@ -35,7 +35,12 @@ fn run(
         mesh,
         ..Params::default()
     };
-    reconstruct(config, snapshots, &params, |_| {}).expect("reconstruction")
+    let r = reconstruct(config, snapshots, &params, |_| {}).expect("reconstruction");
+    // What the mesh stage certifies, the exact search confirms.
+    if r.self_intersection_free {
+        assert!(r.mesh.self_intersecting_triangles().is_empty());
+    }
+    r
 }
 
 /// Writes the mesh as binary and ASCII STL (mm), reads both back, welds them and checks

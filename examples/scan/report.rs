@@ -122,7 +122,12 @@ impl Stats {
     ) -> Self {
         let (mesh, tree) = (&r.mesh, &r.tree);
         let mstats = mesh.stats();
-        let self_intersecting = mesh.self_intersecting_triangles().len();
+        // The mesh stage's untangling already ran the exact test when it certifies the mesh.
+        let self_intersecting = if r.self_intersection_free {
+            0
+        } else {
+            mesh.self_intersecting_triangles().len()
+        };
         Self {
             source,
             snapshots,

@@ -105,9 +105,25 @@ pub use simplify::{
 /// [`MeshError::CellOutsideGrid`], [`MeshError::InvalidArgument`],
 /// [`MeshError::FillTooLarge`].
 pub fn mesh_cells(cells: &[Cell], grid: &GridSpec, opts: &MeshOptions) -> Result<Mesh, MeshError> {
+    Ok(mesh_cells_certified(cells, grid, opts)?.0)
+}
+
+/// As [`mesh_cells`], and whether the mesh is *proven* free of self-intersections: with
+/// smoothing on, the untangling step runs the exact test of [`Mesh::self_intersecting_triangles`]
+/// over every triangle and leaves none, so a caller that reports validity need not run it
+/// again. `false` means "not checked here" (no smoothing, or smoothing undone), not that
+/// the mesh has intersections: run the check then.
+///
+/// # Errors
+/// As [`mesh_cells`].
+pub fn mesh_cells_certified(
+    cells: &[Cell],
+    grid: &GridSpec,
+    opts: &MeshOptions,
+) -> Result<(Mesh, bool), MeshError> {
     let mut mesh = Mesh::default();
-    Mesher::new().run(cells, grid, opts, &mut mesh, false)?;
-    Ok(mesh)
+    let certified = Mesher::new().run(cells, grid, opts, &mut mesh, false)?;
+    Ok((mesh, certified))
 }
 
 /// A reusable mesher: keeps its working buffers (and the caller keeps the output [`Mesh`])
@@ -135,11 +151,12 @@ impl Mesher {
         opts: &MeshOptions,
         out: &mut Mesh,
     ) -> Result<(), MeshError> {
-        self.run(cells, grid, opts, out, true)
+        self.run(cells, grid, opts, out, true).map(|_| ())
     }
 
     /// Meshes into `out`; without `keep`, the working buffers are freed before smoothing
-    /// (lower peak memory for a one-shot mesher).
+    /// (lower peak memory for a one-shot mesher). Returns whether the smoothing proved the
+    /// mesh free of self-intersections ([`mesh_cells_certified`]).
     fn run(
         &mut self,
         cells: &[Cell],
@@ -147,7 +164,7 @@ impl Mesher {
         opts: &MeshOptions,
         out: &mut Mesh,
         keep: bool,
-    ) -> Result<(), MeshError> {
+    ) -> Result<bool, MeshError> {
         out.vertices.clear();
         out.triangles.clear();
         let inside = field::prepare(cells, grid, opts, &mut self.scratch.entries)?;
@@ -155,10 +172,10 @@ impl Mesher {
         if !keep {
             self.scratch = march::Scratch::default();
         }
-        if let Some(t) = &opts.smoothing {
-            smooth::taubin(out, t);
-        }
-        Ok(())
+        Ok(opts
+            .smoothing
+            .as_ref()
+            .is_some_and(|t| smooth::taubin(out, t)))
     }
 }
 

@@ -61,10 +61,12 @@ fn run(mesh: &Mesh, start: &[u32], adj: &[u32], opts: &Taubin, iterations: u32) 
 /// Smooths `mesh` in place. Where the smoothed triangles would cut through each other (or
 /// degenerate), their vertices are moved back toward their unsmoothed positions until none
 /// does ([`crate::selfx`]'s `untangle`); should the unsmoothed mesh itself not be clean,
-/// smoothing is undone.
-pub(crate) fn taubin(mesh: &mut Mesh, opts: &Taubin) {
+/// smoothing is undone. Returns whether the result is proven free of self-intersections:
+/// the untangling ran the exact test over every triangle and left none (`false`: not
+/// checked — nothing to smooth, or smoothing undone).
+pub(crate) fn taubin(mesh: &mut Mesh, opts: &Taubin) -> bool {
     if mesh.vertices.is_empty() || opts.iterations == 0 {
-        return;
+        return false;
     }
     let (start, adj) = neighbours(mesh);
     let smoothed = run(mesh, &start, &adj, opts, opts.iterations);
@@ -72,5 +74,7 @@ pub(crate) fn taubin(mesh: &mut Mesh, opts: &Taubin) {
     let safe = std::mem::replace(&mut mesh.vertices, smoothed);
     if selfx::untangle(mesh, &safe).is_none() {
         mesh.vertices = safe;
+        return false;
     }
+    true
 }

@@ -8,7 +8,7 @@ use proptest::prelude::*;
 use voxoct_mesh::glam::{UVec3, Vec3};
 use voxoct_mesh::{
     Cell, GridSpec, Mesh, MeshOptions, Placement, Taubin, TopologyError, mesh_cells,
-    self_intersecting_triangles, triangles_intersect,
+    mesh_cells_certified, self_intersecting_triangles, triangles_intersect,
 };
 
 /// An exact rational, `n / d` with `d > 0`, reduced; arithmetic panics on overflow.
@@ -491,5 +491,31 @@ proptest! {
         let mesh = to_mesh(&verts, &tris, 0.5, Vec3::new(0.25, -1.0, 3.0));
         let want = all_pairs(tris.len(), |i, j| reference(&verts, &tris, i, j));
         prop_assert_eq!(self_intersecting_triangles(&mesh), want);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// A mesh that `mesh_cells_certified` calls free of self-intersections is: the exact
+    /// search over every pair agrees, on random cell sets with noisy signed distances, solid
+    /// or not, with the default smoothing and with much stronger smoothing.
+    #[test]
+    fn a_certified_mesh_has_no_self_intersections(
+        cells in prop::collection::vec((0u32..12, 0u32..12, 0u32..12, -0.9f32..0.9), 1..120),
+        solid in any::<bool>(),
+        iterations in prop::sample::select(vec![10u32, 40, 100]),
+    ) {
+        let cells: Vec<Cell> = cells.iter().map(|&(x, y, z, s)| cell(x, y, z, s)).collect();
+        let mut opts = MeshOptions::smooth();
+        opts.solid = solid;
+        if let Some(t) = &mut opts.smoothing {
+            t.iterations = iterations;
+        }
+        let (mesh, certified) = mesh_cells_certified(&cells, &grid(), &opts).unwrap();
+        if certified {
+            prop_assert!(mesh.self_intersecting_triangles().is_empty());
+        }
+        prop_assert_eq!(&mesh, &mesh_cells(&cells, &grid(), &opts).unwrap());
     }
 }
