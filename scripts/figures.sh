@@ -34,7 +34,7 @@ cargo build --release --example scan -q
 bin=target/release/examples/scan
 
 stamp() {
-  echo "_Measured at commit \`$(git rev-parse --short HEAD 2>/dev/null || echo unknown)\`$(git diff --quiet 2>/dev/null || echo ' with local changes') on $(date -u +%Y-%m-%d), $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo 2>/dev/null | cut -d: -f2 | sed 's/^ *//' || echo 'unknown CPU')), $(rustc --version | cut -d' ' -f1-2)._"
+  echo "_Measured at commit \`$(git rev-parse --short HEAD 2>/dev/null || echo unknown)\`$(git diff --quiet -- . ':!README.md' ':!BENCHMARKS.md' 2>/dev/null || echo ' with local changes') on $(date -u +%Y-%m-%d), $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo 2>/dev/null | cut -d: -f2 | sed 's/^ *//' || echo 'unknown CPU')), $(rustc --version | cut -d' ' -f1-2)._"
   echo
 }
 {
@@ -171,7 +171,8 @@ if want print && command -v prusa-slicer >/dev/null && [ -d "$data" ]; then
       for k in edges_fixed facets_removed facets_added facets_reversed backwards_edges; do
         for info in "$si" "$ti"; do v=$(get "$info" $k); rep=$((rep + ${v:-0})); done
       done
-      echo "| $n | $(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["mesh_triangles"])' "$out/$n.json") | $(get "$si" size_z) / $(get "$si" min_z) | $(get "$ti" size_z) / $(get "$ti" min_z) | $(get "$si" manifold) | $rep |"
+      mm() { printf "%.2f" "${1:-nan}"; }
+      echo "| $n | $(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["mesh_triangles"])' "$out/$n.json") | $(mm "$(get "$si" size_z)") / $(mm "$(get "$si" min_z)") | $(mm "$(get "$ti" size_z)") / $(mm "$(get "$ti" min_z)") | $(get "$si" manifold) | $rep |"
     done
     echo
   } > "$out/print.md"
