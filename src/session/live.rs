@@ -1,5 +1,20 @@
 //! Live capture: a Kinect v1 through libfreenect and a networked turntable.
 
+use voxoct_kinect::KinectDepth;
+
+/// The settings of a [`super::Source::Kinect`], borrowed for one capture.
+#[cfg_attr(not(feature = "freenect"), allow(dead_code))]
+pub(super) struct Live<'a> {
+    /// `HOST:PORT` of the turntable server.
+    pub turntable: Option<&'a str>,
+    /// Its shared secret.
+    pub token: Option<&'a str>,
+    /// The depth stream.
+    pub depth: KinectDepth,
+    /// Let libfreenect print its own messages.
+    pub verbose: bool,
+}
+
 #[cfg(feature = "freenect")]
 mod imp {
     use super::super::*;
@@ -8,19 +23,17 @@ mod imp {
 
     pub(in crate::session) fn capture(
         session: &Session,
+        live: &super::Live<'_>,
         config: Option<ScannerConfig>,
         params: &Params,
         on_event: &mut impl FnMut(Event<'_>),
     ) -> Result<Acquired, SessionError> {
-        let Source::Kinect {
+        let super::Live {
             turntable,
             token,
             depth,
             verbose,
-        } = &session.source
-        else {
-            unreachable!("live::capture is called for Source::Kinect");
-        };
+        } = live;
         let addr = turntable.as_deref().ok_or_else(|| {
             input(
                 "--turntable",
@@ -97,6 +110,7 @@ mod imp {
 
     pub(in crate::session) fn capture(
         _: &Session,
+        _: &super::Live<'_>,
         _: Option<ScannerConfig>,
         _: &Params,
         _: &mut impl FnMut(Event<'_>),

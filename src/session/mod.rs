@@ -367,7 +367,20 @@ impl Session {
                 dir,
                 degrees_per_snapshot,
             } => self.load_fakenect(dir, *degrees_per_snapshot, config, params),
-            Source::Kinect { .. } => live::capture(self, config, params, &mut on_event),
+            Source::Kinect {
+                turntable,
+                token,
+                depth,
+                verbose,
+            } => {
+                let live = live::Live {
+                    turntable: turntable.as_deref(),
+                    token: token.as_deref(),
+                    depth: *depth,
+                    verbose: *verbose,
+                };
+                live::capture(self, &live, config, params, &mut on_event)
+            }
             Source::Simulated { model, seed, exact } => {
                 self.simulate(model, *seed, *exact, config, params, &mut on_event)
             }
