@@ -34,11 +34,11 @@ impl Floor {
     }
 }
 
-/// How vertices are placed along their grid edges.
+/// How vertices are placed along their grid edges. The default is [`Self::SignedDistance`],
+/// as in [`MeshOptions::default`]; the thesis's mode is [`Self::Midpoint`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Placement {
     /// The thesis: every vertex at the midpoint of its edge (binary field, iso 0.5).
-    #[default]
     Midpoint,
     /// Sub-cell placement from [`voxoct_core::Cell::mean_sdf`]: between two marked cells the
     /// zero of the linearly interpolated signed distance; between a marked and an unmarked
@@ -46,6 +46,7 @@ pub enum Placement {
     /// `[0.02, 0.98]` of the edge, so topology is that of the binary field and no triangle
     /// degenerates. With [`MeshOptions::solid`], cells whose centre lies outside the surface
     /// (positive distance) count as outside, so the wall sits on the surface itself.
+    #[default]
     SignedDistance,
 }
 
