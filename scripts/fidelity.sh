@@ -16,8 +16,7 @@ bench=../shared/bench
 if [ $# -eq 0 ]; then set -- ../shared/data/*-scan; fi
 cargo build --release --example scan -q
 bin=target/release/examples/scan
-up=""
-"$bin" --help | grep -q -- "--up" && up="--up y"
+up="--up y"
 out=$(mktemp)
 {
   echo '```text'

@@ -112,8 +112,8 @@ if want pipeline; then
       for d in "$data"/*-scan; do
         n=$(basename "$d")
         for leaf in 0.001 0.0005; do
-          "$bin" -q --input "$d" --leaf $leaf --out "$out/$n.stl" --stats "$out/$n.json"
-          stats_row "\`$n\`" "$out/$n.json"
+          "$bin" -q --input "$d" --leaf $leaf --out "$out/$n-$leaf.stl" --stats "$out/$n-$leaf.json"
+          stats_row "\`$n\`" "$out/$n-$leaf.json"
         done
       done
     else
@@ -162,9 +162,11 @@ if want print && command -v prusa-slicer >/dev/null && [ -d "$data" ]; then
     echo "|---|---|---|---|---|---|"
     for d in "$data"/*-scan; do
       n=$(basename "$d")
-      "$bin" -q --input "$d" --out "$out/$n.stl" --stats "$out/$n.json"
+      # The pipeline section's 1 mm run (the default leaf) when it ran; otherwise run it here.
+      [ -f "$out/$n-0.001.json" ] ||
+        "$bin" -q --input "$d" --leaf 0.001 --out "$out/$n-0.001.stl" --stats "$out/$n-0.001.json"
       "$bin" -q --input "$d" --out "$out/$n.3mf"
-      si=$(prusa-slicer --info "$out/$n.stl" 2>/dev/null)
+      si=$(prusa-slicer --info "$out/$n-0.001.stl" 2>/dev/null)
       ti=$(prusa-slicer --info "$out/$n.3mf" 2>/dev/null)
       get() { echo "$1" | awk -F'= ' -v k="$2" '$1 ~ "^"k" *$" {print $2; exit}'; }
       rep=0
@@ -172,7 +174,7 @@ if want print && command -v prusa-slicer >/dev/null && [ -d "$data" ]; then
         for info in "$si" "$ti"; do v=$(get "$info" $k); rep=$((rep + ${v:-0})); done
       done
       mm() { printf "%.2f" "${1:-nan}"; }
-      echo "| $n | $(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["mesh_triangles"])' "$out/$n.json") | $(mm "$(get "$si" size_z)") / $(mm "$(get "$si" min_z)") | $(mm "$(get "$ti" size_z)") / $(mm "$(get "$ti" min_z)") | $(get "$si" manifold) | $rep |"
+      echo "| $n | $(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["mesh_triangles"])' "$out/$n-0.001.json") | $(mm "$(get "$si" size_z)") / $(mm "$(get "$si" min_z)") | $(mm "$(get "$ti" size_z)") / $(mm "$(get "$ti" min_z)") | $(get "$si" manifold) | $rep |"
     done
     echo
   } > "$out/print.md"

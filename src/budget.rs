@@ -19,8 +19,9 @@ use voxoct_depth::ScannerConfig;
 
 use crate::pipeline::Params;
 
-/// Peak bytes per occupied leaf (octree, field, mesh and its smoothing), measured on the
-/// built-in figurine at 0.5–2 mm leaves (see BENCHMARKS.md).
+/// Peak bytes per occupied leaf (octree, field, mesh and its smoothing): an estimate taken
+/// from runs of the built-in figurine at 0.5–2 mm leaves, used only to refuse runs that
+/// cannot fit (the `peak MiB` column of BENCHMARKS.md's pipeline table shows real runs).
 pub const BYTES_PER_LEAF: f64 = 700.0;
 /// Scratch bytes per pixel of a snapshot being filtered, back-projected and triangulated.
 pub const BYTES_PER_SNAPSHOT_PIXEL: f64 = 32.0;

@@ -51,8 +51,6 @@ pub use voxoct_mesh as mesh;
 pub use voxoct_stl as stl;
 pub use voxoct_turntable as turntable;
 
-/// Free-space carving, now in [`voxoct_depth::carve`] (re-exported here for compatibility).
-pub use voxoct_depth::carve;
 pub mod budget;
 pub mod mesh_file;
 pub mod output;

@@ -67,9 +67,8 @@ pub struct Params {
     pub check_agreement: bool,
     /// Simplify the mesh after dropping small pieces ([`voxoct_mesh::simplify`]: quadric edge
     /// collapse that keeps it closed, manifold and free of new self-intersections); `None`
-    /// keeps every triangle. Off by default: it keeps the accuracy but is slower than the
-    /// rest of the pipeline together (see BENCHMARKS.md); use [`Simplify::for_leaf`] of
-    /// `leaf_m`.
+    /// keeps every triangle. Off by default until it is fast enough to be (issue 14); use
+    /// [`Simplify::for_leaf`] of `leaf_m`.
     pub simplify: Option<Simplify>,
 }
 
@@ -576,7 +575,7 @@ fn close_unseen(
     let Some((lo, hi)) = closure_box(&cells, grid, floor) else {
         return cells;
     };
-    let seen = visibility(&views, grid, lo, hi, margin, |_| false);
+    let seen = visibility(&views, grid, lo, hi, margin);
     let dim = hi - lo + UVec3::ONE;
     close_cells(cells, grid, (lo, hi), floor, options.min_hits, |c| {
         let d = c - lo;

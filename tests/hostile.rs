@@ -1,6 +1,5 @@
 //! Hostile inputs and outputs (issue 16): each test is one defect of the adversarial run, as a
-//! user meets it through the example binaries. The binaries are those `cargo test
-//! --workspace` builds; with only this target built the tests say so and pass.
+//! user meets it through the example binaries, which `common::example_bin` builds first.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -584,7 +583,7 @@ fn d11_frame_paths_outside_the_scan_or_not_regular_files_are_refused() {
 // ---- 12–15. the turntable server -------------------------------------------------------------
 
 /// Starts the server on a free loopback port; returns the child and the address it printed.
-fn server(args: &[&str], envs: &[(&str, &str)]) -> Option<(std::process::Child, String)> {
+fn server(args: &[&str], envs: &[(&str, &str)]) -> (std::process::Child, String) {
     let mut cmd = Command::new(bin("turntable_server"));
     cmd.args(["--listen", "127.0.0.1:0"])
         .args(args)
@@ -608,7 +607,7 @@ fn server(args: &[&str], envs: &[(&str, &str)]) -> Option<(std::process::Child, 
             let addr = rest.split_whitespace().next().unwrap().to_owned();
             // Keep draining stderr so the server never blocks on it.
             std::thread::spawn(move || drain(err));
-            return Some((child, addr));
+            return (child, addr);
         }
     }
     let _ = child.kill();
@@ -652,7 +651,7 @@ fn d12_a_nonsensical_sim_speed_is_refused_at_start() {
 
 #[test]
 fn d14_sigint_during_a_turn_finishes_it_replies_and_exits_0() {
-    let (mut child, addr) = server(&["--sim-speed", "90"], &[]).expect("the server starts");
+    let (mut child, addr) = server(&["--sim-speed", "90"], &[]);
     let (mut s, mut r) = connect(&addr);
     send(&mut s, "VOXOCT-TT/1");
     assert!(read_line(&mut r).starts_with("OK "));
@@ -675,8 +674,7 @@ fn d14_sigint_during_a_turn_finishes_it_replies_and_exits_0() {
 
 #[test]
 fn d15_the_server_reads_the_token_from_voxoct_turntable_token() {
-    let (mut child, addr) =
-        server(&[], &[("VOXOCT_TURNTABLE_TOKEN", "s3cret")]).expect("the server starts");
+    let (mut child, addr) = server(&[], &[("VOXOCT_TURNTABLE_TOKEN", "s3cret")]);
     let (mut s, mut r) = connect(&addr);
     send(&mut s, "VOXOCT-TT/1");
     assert!(read_line(&mut r).starts_with("ERR UNAUTHORISED"));
@@ -791,19 +789,7 @@ fn d17_messages_say_what_is_wrong() {
     assert_refused(&o, &["no frame had a valid depth pixel"]);
     // Out of range for f32, not "non-finite"; a subnormal unit is out of range too.
     for (key, to) in [("depth_unit_m", "1e-45"), ("angle_deg", "1e300")] {
-        let mut done = false;
-        let edited = original
-            .lines()
-            .map(|l| {
-                if !done && l.trim_start().starts_with(&format!("{key} =")) {
-                    done = true;
-                    format!("{key} = {to}")
-                } else {
-                    l.to_owned()
-                }
-            })
-            .collect::<Vec<_>>()
-            .join("\n");
+        let edited = set_first(&original, key, to);
         std::fs::write(rec.join("scan.toml"), edited).unwrap();
         let o = run(
             "scan",
@@ -872,4 +858,20 @@ fn drain(mut s: impl Read) -> Vec<u8> {
 
 fn send(s: &mut TcpStream, line: &str) {
     let _ = s.write_all(format!("{line}\n").as_bytes());
+}
+
+/// `text` with the first `key = …` line's value replaced by `value`.
+fn set_first(text: &str, key: &str, value: &str) -> String {
+    let mut done = false;
+    text.lines()
+        .map(|l| {
+            if !done && l.trim_start().starts_with(&format!("{key} =")) {
+                done = true;
+                format!("{key} = {value}")
+            } else {
+                l.to_owned()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
 }

@@ -25,7 +25,7 @@ use indicatif::ProgressBar;
 use voxoct::mesh_file::MeshFile;
 use voxoct::output::{OutputId, Outputs};
 use voxoct::pipeline::{Params, Reconstruction, disagreement_explained_m, reconstruct};
-use voxoct::session::{self, Acquired, Event};
+use voxoct::session::{self, Acquired, Event, Session};
 
 use args::Args;
 use report::{Progress, Seconds, Stats};
@@ -54,7 +54,7 @@ struct Planned {
     preview: Option<OutputId>,
 }
 
-fn plan(args: &Args) -> Result<Planned, String> {
+fn plan(args: &Args, session: &Session) -> Result<Planned, String> {
     let mut outputs = Outputs::new();
     let e = |e: voxoct::output::OutputError| e.to_string();
     let out = outputs.add("--out", &args.out).map_err(e)?;
@@ -67,7 +67,7 @@ fn plan(args: &Args) -> Result<Planned, String> {
     let stats = add("--stats", &args.stats)?;
     let preview = add("--preview", &args.preview)?;
     if let Some(dir) = &args.record_to {
-        session::check_record_dir(dir, args.session().source.input_dir(), args.force)
+        session::check_record_dir(dir, session.source.input_dir(), args.force)
             .map_err(|e| e.to_string())?;
     }
     Ok(Planned {
@@ -92,7 +92,7 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
     let session = args.session();
     session.validate().map_err(|e| e.to_string())?;
     let file = args.mesh_file()?;
-    let planned = plan(args)?;
+    let planned = plan(args, &session)?;
     let progress = Progress {
         enabled: !args.quiet && std::io::stderr().is_terminal(),
     };

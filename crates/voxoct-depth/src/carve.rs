@@ -43,7 +43,6 @@ enum ViewSees {
 
 /// What all views together say of a cell ([`visibility`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
 pub enum Seen {
     /// Some view sees the cell in front of its reading: empty space.
     Empty,
@@ -52,8 +51,6 @@ pub enum Seen {
     /// No view sees it in front of or on its surface: it is behind every reading that covers
     /// it, or covered by none.
     Unseen,
-    /// Skipped by the caller's filter.
-    Skipped,
 }
 
 /// `x.round()` (half away from zero) as an index when it lies in `0..len`, without a libm
@@ -258,8 +255,7 @@ struct BlockPlan {
 }
 
 /// What the views say of every cell of `grid` in the box `lo..=hi` (grid coordinates), in
-/// x-fastest order ([`Seen`]); cells that `skip` rejects (e.g. cells already marked) are
-/// [`Seen::Skipped`]. With no views every cell is [`Seen::Unseen`].
+/// x-fastest order ([`Seen`]). With no views every cell is [`Seen::Unseen`].
 ///
 /// `margin` is the depth tolerance, metres: the sensor's noise (a few σ) plus half a cell
 /// diagonal.
@@ -275,7 +271,6 @@ pub fn visibility(
     lo: UVec3,
     hi: UVec3,
     margin: f32,
-    skip: impl Fn(UVec3) -> bool + Sync,
 ) -> Vec<Seen> {
     if lo.cmpgt(hi).any() {
         return Vec::new();
@@ -305,7 +300,7 @@ pub fn visibility(
     #[cfg(not(feature = "parallel"))]
     let projected: Vec<Vec<Corner>> = views.iter().map(project).collect();
     let plans = plan_blocks(views, &pyramids, &projected, blocks, margin);
-    classify_cells(views, grid, &plans, blocks, lo, hi, margin, skip)
+    classify_cells(views, grid, &plans, blocks, lo, hi, margin)
 }
 
 /// Every block's [`BlockPlan`], x-fastest: which views see it wholly in front, and which
@@ -381,7 +376,6 @@ fn classify_cells(
     lo: UVec3,
     hi: UVec3,
     margin: f32,
-    skip: impl Fn(UVec3) -> bool + Sync,
 ) -> Vec<Seen> {
     let (dim_x, dim_y) = ((hi.x - lo.x + 1) as usize, (hi.y - lo.y + 1) as usize);
     let slab = |z: u32| {
@@ -392,10 +386,6 @@ fn classify_cells(
             for x in lo.x..=hi.x {
                 let c = UVec3::new(x, y, z);
                 let plan = &plans[row + ((x - lo.x) / BLOCK) as usize];
-                if skip(c) {
-                    out.push(Seen::Skipped);
-                    continue;
-                }
                 if plan.none {
                     out.push(Seen::Empty);
                     continue;
@@ -492,14 +482,7 @@ mod tests {
             cell: 0.01,
             resolution: 16,
         };
-        let seen = visibility(
-            &[view, view],
-            &grid,
-            UVec3::ZERO,
-            UVec3::splat(15),
-            0.004,
-            |_| false,
-        );
+        let seen = visibility(&[view, view], &grid, UVec3::ZERO, UVec3::splat(15), 0.004);
         let unseen: Vec<UVec3> = (0..16 * 16 * 16u32)
             .filter(|&i| seen[i as usize] == Seen::Unseen)
             .map(|i| UVec3::new(i % 16, i / 16 % 16, i / 256))
@@ -617,7 +600,7 @@ mod tests {
         for k in [Seen::Empty, Seen::Surface, Seen::Unseen] {
             assert!(count(k) > 100, "{} cells {k:?}", count(k));
         }
-        let got = visibility(&views, &grid, lo, hi, 0.004, |_| false);
+        let got = visibility(&views, &grid, lo, hi, 0.004);
         let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
         assert_eq!(differ, 0, "{differ} of {} cells differ", want.len());
     }
@@ -645,9 +628,7 @@ mod tests {
             cell: 0.01,
             resolution: 16,
         };
-        let seen = visibility(&[a, b], &grid, UVec3::ZERO, UVec3::splat(15), 0.004, |_| {
-            false
-        });
+        let seen = visibility(&[a, b], &grid, UVec3::ZERO, UVec3::splat(15), 0.004);
         assert!(seen.iter().all(|&s| s == Seen::Empty));
     }
 }

@@ -32,7 +32,7 @@ pub fn kinect_v1_sigma(z_m: f32) -> f32 {
 /// The disparity noise `σ_d` of the Kinect v1 that gives [`kinect_v1_sigma`], pixels:
 /// `KINECT_V1_SIGMA_COEFF · f·b` ≈ 0.062 px (half a raw disparity unit of 1/8 px).
 #[must_use]
-pub fn kinect_v1_disparity_sigma_px() -> f32 {
+pub const fn kinect_v1_disparity_sigma_px() -> f32 {
     KINECT_V1_SIGMA_COEFF * KINECT_V1_FOCAL_BASELINE_PX_M
 }
 

@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
-use voxoct_depth::noise::{KINECT_V1_FOCAL_BASELINE_PX_M, KINECT_V1_SIGMA_COEFF};
+use voxoct_depth::noise::KINECT_V1_FOCAL_BASELINE_PX_M;
 use voxoct_depth::{DepthFrame, Intrinsics, Rig};
 
 use crate::{DepthSource, Model, SourceError};
@@ -67,7 +67,7 @@ impl NoiseModel {
     /// were rendered with twice this disparity noise, `disparity_sigma_px: 0.125`.)
     pub const KINECT_V1: Self = Self {
         focal_baseline_px_m: KINECT_V1_FOCAL_BASELINE_PX_M,
-        disparity_sigma_px: KINECT_V1_SIGMA_COEFF * KINECT_V1_FOCAL_BASELINE_PX_M,
+        disparity_sigma_px: voxoct_depth::noise::kinect_v1_disparity_sigma_px(),
         disparity_step_px: 0.125,
         min_range_m: 0.4,
         max_range_m: 4.0,

@@ -72,7 +72,7 @@ pub(crate) fn taubin(mesh: &mut Mesh, opts: &Taubin) -> bool {
     let smoothed = run(mesh, &start, &adj, opts, opts.iterations);
     drop((start, adj));
     let safe = std::mem::replace(&mut mesh.vertices, smoothed);
-    if selfx::untangle(mesh, &safe).is_none() {
+    if !selfx::untangle(mesh, &safe) {
         mesh.vertices = safe;
         return false;
     }

@@ -50,8 +50,9 @@ pub fn read<R: Read>(r: R) -> Result<Vec<Triangle>, StlError> {
 pub fn read_file(path: impl AsRef<Path>) -> Result<Vec<Triangle>, StlError> {
     let path = path.as_ref();
     (|| {
+        // Within MAX_FILE_BYTES once checked: read whole, sized by the file's length.
         check_mesh_file(path)?;
-        read(std::fs::File::open(path)?)
+        parse(&std::fs::read(path)?)
     })()
     .map_err(|e| e.in_file(path))
 }

@@ -289,7 +289,7 @@ fn remote_error(
         ErrorCode::Unauthorised => TurntableError::Unauthorised,
         ErrorCode::Version => TurntableError::Version(message),
         // Refused before moving: nothing timed out, the server says why.
-        ErrorCode::Timeout if message.contains("refused before moving") => {
+        ErrorCode::Timeout if message.contains(crate::error::REFUSED_BEFORE_MOVING) => {
             TurntableError::Remote { code, message }
         }
         ErrorCode::Timeout => TurntableError::Timeout {

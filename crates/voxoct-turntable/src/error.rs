@@ -4,6 +4,10 @@
 
 use std::time::Duration;
 
+/// The words that end a [`TurntableError::TooSlow`] message: the client recognises a turn
+/// the server refused before moving by them (the wire code is `TIMEOUT`).
+pub(crate) const REFUSED_BEFORE_MOVING: &str = "refused before moving";
+
 /// Everything that can go wrong while driving a turntable, locally or over
 /// the network.
 ///
@@ -33,7 +37,7 @@ pub enum TurntableError {
     ///
     /// How to fix: give a longer timeout, or a higher speed.
     #[error(
-        "{operation} would take {needs:?}, longer than its timeout of {timeout:?}; refused before moving"
+        "{operation} would take {needs:?}, longer than its timeout of {timeout:?}; {REFUSED_BEFORE_MOVING}"
     )]
     TooSlow {
         /// What was asked (`"rotate by 90 deg"`).

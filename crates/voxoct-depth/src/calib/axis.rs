@@ -238,8 +238,8 @@ fn agreement(
             if q.z <= 0.0 || nq.dot(q) >= 0.0 {
                 continue; // behind the sensor, or facing away from it: not visible in j
             }
-            let u = (q.x * intr.fx / q.z + intr.cx).round() as i64;
-            let v = (q.y * intr.fy / q.z + intr.cy).round() as i64;
+            let [u, v, _] = intr.project_any(q);
+            let (u, v) = (u.round() as i64, v.round() as i64);
             if u < 0 || v < 0 || u >= w || v >= h {
                 continue;
             }

@@ -66,13 +66,11 @@ use grid::*;
 #[must_use]
 pub fn triangles_intersect(mesh: &Mesh, i: usize, j: usize) -> bool {
     let (ti, tj) = (mesh.triangles[i], mesh.triangles[j]);
-    let (ki, kj) = (
-        classify(&mesh.vertices, ti).0,
-        classify(&mesh.vertices, tj).0,
-    );
+    let ki = classify(&mesh.vertices, ti).0;
     if i == j {
         return ki == NO_AXIS;
     }
+    let kj = classify(&mesh.vertices, tj).0;
     if ki == NO_AXIS || kj == NO_AXIS {
         return false;
     }
@@ -316,10 +314,10 @@ fn fact(vertices: &[Vec3], t: [u32; 3], f32_degenerate: bool) -> (u8, u8) {
 /// a flagged triangle goes to the next of `moved + f · (safe - moved)` for f = 1/2, 3/4, 7/8,
 /// then to `safe` itself, and the triangles around the moved vertices are checked again.
 /// Every round moves a vertex, and a pair of triangles whose vertices are all at `safe` is
-/// proper, so this ends. Returns the number of vertices not at their moved position, or
-/// `None` when flagged triangles are left with every vertex at `safe` (`safe` was not
-/// clean).
-pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> Option<usize> {
+/// proper, so this ends. Returns `true` when no triangle is left flagged (the mesh is
+/// proven free of self-intersections), `false` when flagged triangles are left with every
+/// vertex at `safe` (`safe` was not clean).
+pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> bool {
     let Mesh {
         vertices,
         triangles,
@@ -332,7 +330,7 @@ pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> Option<usize> {
     let mut checker = Checker::new(vertices, triangles, Some(swept), true);
     let mut flagged = checker.check_all(vertices);
     if flagged.is_empty() {
-        return Some(0);
+        return true;
     }
     let mut level = vec![0u8; vertices.len()];
     let mut dirty = vec![false; triangles.len()];
@@ -346,7 +344,7 @@ pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> Option<usize> {
         moved.dedup();
         moved.retain(|&v| level[v as usize] < UNTANGLE_STEPS);
         if moved.is_empty() {
-            return None;
+            return false;
         }
         for &v in &moved {
             let l = &mut level[v as usize];
@@ -361,7 +359,7 @@ pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> Option<usize> {
         }
         flagged = checker.recheck(vertices, &moved, &mut dirty);
     }
-    Some(level.iter().filter(|&&l| l > 0).count())
+    true
 }
 
 /// Steps from the moved position to the safe one in [`untangle`].

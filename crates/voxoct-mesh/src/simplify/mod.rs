@@ -202,7 +202,7 @@ pub fn simplify(mesh: &mut Mesh, opts: &Simplify) -> SimplifyStats {
             return stats;
         }
         if stats.retries == MAX_RETRIES {
-            *mesh = original;
+            // Give up: `mesh` is still the caller's input, untouched.
             stats.triangles_after = mesh.triangles.len();
             return stats;
         }

@@ -143,11 +143,8 @@ impl ServerHandle {
 
     /// Stops accepting, closes idle sessions within ~250 ms, lets a turn in
     /// progress finish (bounded by its timeout), and waits for every thread.
-    pub fn shutdown(mut self) {
-        self.shared.stop.store(true, Ordering::SeqCst);
-        if let Some(h) = self.accept.take() {
-            let _ = h.join();
-        }
+    pub fn shutdown(self) {
+        drop(self); // `Drop` stops the server and joins its threads.
     }
 
     /// Blocks until the server stops through a [`StopSignal`] (for a
