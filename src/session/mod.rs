@@ -443,7 +443,7 @@ impl Session {
             frames as u64,
         )?;
         on_event(Event::Loading(dir));
-        let mut scan = RecordedScan::open_limited(dir, self.limit_bytes())
+        let mut scan = RecordedScan::from_manifest(dir, manifest, self.limit_bytes())
             .map_err(|e| input("--input", format!("--input: {e}")))?;
         if let Some(c) = &config {
             scan.apply_config(c).map_err(|e| {

@@ -322,23 +322,15 @@ fn load_model_file(path: &Path) -> Result<(Model, Option<f64>), SourceError> {
             let tris = voxoct_stl::parse(&bytes).map_err(decoder)?;
             (Model::from_triangles(&tris), None)
         }
-        voxoct_stl::MeshFormat::ThreeMf => {
-            let file = std::io::BufReader::new(std::fs::File::open(path).map_err(io)?);
-            let m = voxoct_stl::threemf::read_3mf(file).map_err(decoder)?;
+        // 3MF and PLY: indexed meshes, read as voxoct-stl reads them (a 3MF states its unit).
+        f @ (voxoct_stl::MeshFormat::ThreeMf | voxoct_stl::MeshFormat::Ply) => {
+            let bytes = std::fs::read(path).map_err(io)?;
+            let m = voxoct_stl::read_mesh(&bytes, f).map_err(decoder)?;
             let model = Model {
                 vertices: m.vertices,
                 indices: m.triangles,
             };
             (model, m.metres_per_unit)
-        }
-        voxoct_stl::MeshFormat::Ply => {
-            let bytes = std::fs::read(path).map_err(io)?;
-            let m = voxoct_stl::ply::parse_ply(&bytes).map_err(decoder)?;
-            let model = Model {
-                vertices: m.vertices,
-                indices: m.triangles,
-            };
-            (model, None)
         }
     };
     model.validate(&path.display().to_string())?;

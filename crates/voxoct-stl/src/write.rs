@@ -206,7 +206,10 @@ pub fn write_file(
     format: StlFormat,
     scale: f32,
 ) -> Result<(), StlError> {
-    let path = path.as_ref();
-    crate::write_atomic(path, |w| write(w, vertices, triangles, format, scale))
-        .map_err(|e: StlError| e.in_file(path))
+    crate::write_mesh_file(
+        path,
+        crate::MeshFormat::Stl,
+        crate::MeshRef::new(vertices, triangles),
+        &crate::WriteOptions { scale, stl: format },
+    )
 }

@@ -4,8 +4,8 @@
 
 use std::time::Duration;
 
-/// The words that end a [`TurntableError::TooSlow`] message: the client recognises a turn
-/// the server refused before moving by them (the wire code is `TIMEOUT`).
+/// The words that end a [`TurntableError::TooSlow`] message (a test checks it): the client
+/// recognises a turn the server refused before moving by them (the wire code is `TIMEOUT`).
 pub(crate) const REFUSED_BEFORE_MOVING: &str = "refused before moving";
 
 /// Everything that can go wrong while driving a turntable, locally or over
@@ -37,7 +37,7 @@ pub enum TurntableError {
     ///
     /// How to fix: give a longer timeout, or a higher speed.
     #[error(
-        "{operation} would take {needs:?}, longer than its timeout of {timeout:?}; {REFUSED_BEFORE_MOVING}"
+        "{operation} would take {needs:?}, longer than its timeout of {timeout:?}; refused before moving"
     )]
     TooSlow {
         /// What was asked (`"rotate by 90 deg"`).
@@ -220,5 +220,20 @@ impl ErrorCode {
 impl std::fmt::Display for ErrorCode {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.as_str())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_refused_turn_says_the_words_the_client_looks_for() {
+        let e = TurntableError::TooSlow {
+            operation: "rotate by 90 deg".into(),
+            needs: Duration::from_secs(1),
+            timeout: Duration::from_millis(100),
+        };
+        assert!(e.to_string().ends_with(REFUSED_BEFORE_MOVING), "{e}");
     }
 }

@@ -36,8 +36,19 @@ impl RecordedScan {
     /// [`RecordedScan::open`] with the frames' memory limited to `max_bytes`.
     pub fn open_limited(dir: impl AsRef<Path>, max_bytes: u64) -> Result<Self, ScanError> {
         let dir = dir.as_ref();
+        let manifest = ScanManifest::load(dir.join(MANIFEST_FILE))?;
+        Self::from_manifest(dir, manifest, max_bytes)
+    }
+
+    /// [`RecordedScan::open_limited`] with `dir/scan.toml` already read (by
+    /// [`ScanManifest::load`]): reads and checks the frames it lists.
+    pub fn from_manifest(
+        dir: impl AsRef<Path>,
+        manifest: ScanManifest,
+        max_bytes: u64,
+    ) -> Result<Self, ScanError> {
+        let dir = dir.as_ref();
         let mpath = dir.join(MANIFEST_FILE);
-        let manifest = ScanManifest::load(&mpath)?;
         let i = manifest.sensor.intrinsics;
         let count: u64 = manifest
             .snapshots
