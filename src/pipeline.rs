@@ -545,8 +545,10 @@ fn mesh_tree(
     Ok((mesh, certified))
 }
 
-/// Closes what no frame saw by the smallest surface between the space seen empty and the
-/// solid ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]).
+/// Closes what no frame saw by the cheapest surface between the space seen empty and the
+/// solid ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]): invented surface
+/// costs its area, and one more unit of area for every carving margin (the uncertainty of
+/// an observed surface's position) it lies away from the nearest observation.
 fn close_unseen(
     config: &ScannerConfig,
     options: &MeshOptions,
@@ -577,10 +579,20 @@ fn close_unseen(
     };
     let seen = visibility(&views, grid, lo, hi, margin);
     let dim = hi - lo + UVec3::ONE;
-    close_cells(cells, grid, (lo, hi), floor, options.min_hits, |c| {
-        let d = c - lo;
-        seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
-    })
+    // The distance at which invented surface costs twice as much as surface next to an
+    // observation: one margin.
+    close_cells(
+        cells,
+        grid,
+        (lo, hi),
+        floor,
+        options.min_hits,
+        margin / grid.cell,
+        |c| {
+            let d = c - lo;
+            seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
+        },
+    )
 }
 
 /// The snapshots of a recorded scan, ready for [`reconstruct`], with its scanner settings.

@@ -37,8 +37,10 @@
 //! - `solid` with a [`Floor`]: flood-fill the outside and fill what it cannot reach, so the
 //!   double-walled shell becomes one solid with a flat base where the sensor never looked.
 //! - [`closure`]: decide the cells no view saw with a minimum cut between the cells seen
-//!   empty and the solid ones, so the unseen space is closed by the smallest surface (a
-//!   depth-scanning front end classifies the cells, e.g. `voxoct_depth::carve::visibility`).
+//!   empty and the solid ones, each invented face priced by its distance from the nearest
+//!   observation, so the unseen space is closed next to what was seen rather than across open
+//!   space (a depth-scanning front end classifies the cells, e.g.
+//!   `voxoct_depth::carve::visibility`).
 //! - [`Placement::SignedDistance`]: vertices slide along their edges to where the mean signed
 //!   distance stored in each [`Cell`] says the surface is; with `solid` the wall sits on the
 //!   surface itself rather than half a cell outside the outermost marked cells.
