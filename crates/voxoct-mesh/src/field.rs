@@ -561,9 +561,10 @@ mod tests {
 
     /// Random cells: blobs (hollow shells with holes, solid lumps) and specks in a small box.
     fn scene() -> impl Strategy<Value = Vec<(UVec3, f32)>> {
-        let blob = (2u32..40, 2u32..40, 2u32..40, 1u32..12, 0u8..3);
-        let specks = prop::collection::vec((0u32..50, 0u32..50, 0u32..50, -1.0f32..1.0), 0..40);
-        (prop::collection::vec(blob, 1..4), specks, any::<u64>()).prop_map(|(blobs, sp, seed)| {
+        // Across tiles along every axis (64 × 16 × 16 cells each).
+        let blob = (2u32..150, 2u32..40, 2u32..40, 1u32..12, 0u8..3);
+        let specks = prop::collection::vec((0u32..160, 0u32..50, 0u32..50, -1.0f32..1.0), 0..40);
+        (prop::collection::vec(blob, 1..6), specks, any::<u64>()).prop_map(|(blobs, sp, seed)| {
             let mut out = Vec::new();
             let mut h = seed | 1;
             let mut rnd = move || {
@@ -644,7 +645,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(48))]
+        #![proptest_config(ProptestConfig::with_cases(64))]
         /// The tiled fill gives exactly the dense fill's cells, values and order.
         #[test]
         fn tiled_fill_equals_dense(

@@ -627,6 +627,79 @@ mod tests {
         out
     }
 
+    /// Cells reached from `start` through `free` by a breadth-first search over cells.
+    fn brute_flood(free: &[bool], n: [usize; 3], start: usize) -> Vec<bool> {
+        let mut seen = vec![false; free.len()];
+        let mut queue = vec![start];
+        seen[start] = true;
+        while let Some(c) = queue.pop() {
+            let p = [c % n[0], c / n[0] % n[1], c / (n[0] * n[1])];
+            for d in kuhn_dirs() {
+                let q: Vec<i64> = (0..3).map(|a| p[a] as i64 + i64::from(d[a])).collect();
+                if (0..3).any(|a| q[a] < 0 || q[a] >= n[a] as i64) {
+                    continue;
+                }
+                let j = (q[2] as usize * n[1] + q[1] as usize) * n[0] + q[0] as usize;
+                if free[j] && !seen[j] {
+                    seen[j] = true;
+                    queue.push(j);
+                }
+            }
+        }
+        seen
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+        /// The tiled flood reaches exactly the cells a flood over cells reaches, through
+        /// clear, full and mixed tiles (mixed ones with sparse free cells, so that many
+        /// paths run through a single face, edge or corner between tiles).
+        #[test]
+        fn flood_matches_brute_force(
+            kinds in proptest::collection::vec(0u8..4, 12),
+            seed in proptest::prelude::any::<u64>(),
+            start in proptest::prelude::any::<u32>(),
+        ) {
+            let t = [3, 2, 2];
+            let mut free = Tiled::new(t);
+            let mut h = seed | 1;
+            for (i, &kind) in kinds.iter().enumerate() {
+                match kind {
+                    0 => {}
+                    1 => free.grid[i] = ONE,
+                    k => {
+                        for r in 0..ROWS {
+                            h ^= h << 13;
+                            h ^= h >> 7;
+                            h ^= h << 17;
+                            let a = h;
+                            h ^= h << 13;
+                            h ^= h >> 7;
+                            h ^= h << 17;
+                            // About 3/4 or 1/4 of the cells free.
+                            free.or_word(i, r, if k == 2 { a | h } else { a & h });
+                        }
+                    }
+                }
+            }
+            let n = [t[0] * TX, t[1] * TY, t[2] * TZ];
+            let cells = dense_of(&free);
+            let free_cells: Vec<usize> = (0..cells.len()).filter(|&c| cells[c]).collect();
+            proptest::prop_assume!(!free_cells.is_empty());
+            let start = free_cells[start as usize % free_cells.len()];
+            let want = brute_flood(&cells, n, start);
+            let mut reached = Tiled::new(t);
+            let mut flood = TiledFlood::new();
+            let p = [start % n[0], start / n[0] % n[1], start / (n[0] * n[1])];
+            let i = (p[2] / TZ * t[1] + p[1] / TY) * t[0] + p[0] / TX;
+            let r = (p[2] % TZ) * TY + p[1] % TY;
+            let none = &mut |_: usize, _: u32, _: u64| {};
+            flood.seed(&free, &mut reached, i, r, 1 << (p[0] % TX), none);
+            flood.run(&free, &mut reached, none);
+            proptest::prop_assert!(dense_of(&reached) == want);
+        }
+    }
+
     #[test]
     fn dilation_matches_brute_force() {
         let t = [2, 3, 2];
