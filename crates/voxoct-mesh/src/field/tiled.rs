@@ -247,8 +247,11 @@ impl Tiled {
 
     /// The set dilated by `k` cells (L∞); cells beyond the grid count as set when `beyond`.
     pub fn dilate(&self, k: usize, beyond: bool) -> Self {
-        let mut out = self.clone();
-        let mut left = k;
+        if k == 0 {
+            return self.clone();
+        }
+        let mut out = self.dilate_step(k.min(STEP), beyond);
+        let mut left = k - k.min(STEP);
         while left > 0 {
             let step = left.min(STEP);
             out = out.dilate_step(step, beyond);
