@@ -1,6 +1,8 @@
 //! From marked cells to the cell field that is marched: weak-cell rejection, small-component
-//! removal, floor, and the flood fill that separates the outside from enclosed space (over a
-//! dense box of bits, see the `bitbox` module).
+//! removal, floor, and the flood fill that separates the outside from enclosed space: over a
+//! dense box of bits (the `bitbox` module) while the cells' box is small, in tiles (the
+//! `tiled` module, memory that follows the marked cells) past [`FILL_LIMIT`]; both give the
+//! same cells.
 
 use std::collections::HashMap;
 
@@ -253,7 +255,11 @@ fn enclosed(marked: &BitBox, closed_bottom: bool, gap: u32) -> BitBox {
 ///
 /// Connected groups of marked cells smaller than `min_component` are dropped first. With
 /// `specks = Some((min, inside))`, connected groups of inside cells smaller than `min` are
-/// dropped at the end. The cells come out in z, y, x order.
+/// dropped at the end. The cells come out in z, y, x order. Boxes past [`FILL_LIMIT`] cells
+/// are filled in tiles ([`fill_enclosed_tiled`]), to the same cells.
+///
+/// # Errors
+/// [`MeshError::FillTooLarge`] only past [`TILE_GRID_LIMIT`] tiles.
 fn fill_enclosed(
     cells: &mut Vec<(UVec3, f32)>,
     floor: Option<u32>,
