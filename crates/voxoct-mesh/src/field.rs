@@ -328,8 +328,7 @@ fn fill_enclosed_tiled(
         });
     }
     // Box order (z, y, x); of repeated coordinates the last counts, as in the dense box.
-    let key = |c: UVec3| (c.z, c.y, c.x);
-    cells.sort_by_key(|c| key(c.0));
+    cells.sort_by_key(|c| (c.0.z, c.0.y, c.0.x));
     let mut kept = 0;
     for r in 0..cells.len() {
         if r + 1 < cells.len() && cells[r].0 == cells[r + 1].0 {
@@ -374,43 +373,57 @@ fn fill_enclosed_tiled(
         keep = keep.and_not(&ins.and_not(&big));
     }
     drop(chosen);
-    // The kept cells in box order, merged with the (sorted) marked values.
-    let mut out = Vec::with_capacity(keep.count() as usize);
-    let mut j = 0;
-    for tz in 0..t[2] {
-        for lz in 0..tiled::TZ {
-            for ty in 0..t[1] {
-                for ly in 0..tiled::TY {
-                    let r = lz * tiled::TY + ly;
-                    for tx in 0..t[0] {
+    // The kept cells in box order, in place: the kept marked cells (sorted) stay, then the
+    // enclosed ones are merged in from the back (each written slot is at or after the
+    // marked cell still to be read).
+    let (tx_, ty_, tz_) = (tiled::TX, tiled::TY, tiled::TZ);
+    let slot = |c: UVec3| {
+        let q = local(c);
+        let (x, y, z) = (q.x as usize, q.y as usize, q.z as usize);
+        (
+            (z / tz_ * t[1] + y / ty_) * t[0] + x / tx_,
+            (z % tz_) * ty_ + y % ty_,
+            x % tx_,
+        )
+    };
+    cells.retain(|c| {
+        let (i, r, b) = slot(c.0);
+        (keep.word(i, r) & marked.word(i, r)) >> b & 1 == 1
+    });
+    let mut j = cells.len();
+    let mut w = keep.count() as usize;
+    cells.resize(w, (UVec3::ZERO, 0.0));
+    for tz in (0..t[2]).rev() {
+        for lz in (0..tz_).rev() {
+            for ty in (0..t[1]).rev() {
+                for ly in (0..ty_).rev() {
+                    let r = lz * ty_ + ly;
+                    for tx in (0..t[0]).rev() {
                         let i = (tz * t[1] + ty) * t[0] + tx;
                         let mut bits = keep.word(i, r);
                         let m = marked.word(i, r);
                         while bits != 0 {
-                            let b = bits.trailing_zeros() as usize;
-                            bits &= bits - 1;
-                            let d = IVec3::new(
-                                (tx * tiled::TX + b) as i32,
-                                (ty * tiled::TY + ly) as i32,
-                                (tz * tiled::TZ + lz) as i32,
-                            );
-                            let p = (origin + d).as_uvec3();
-                            let v = if m >> b & 1 == 1 {
-                                while key(cells[j].0) < key(p) {
-                                    j += 1;
-                                }
-                                cells[j].1
+                            let b = 63 - bits.leading_zeros() as usize;
+                            bits &= !(1u64 << b);
+                            w -= 1;
+                            cells[w] = if m >> b & 1 == 1 {
+                                j -= 1;
+                                cells[j]
                             } else {
-                                f32::NEG_INFINITY
+                                let d = IVec3::new(
+                                    (tx * tx_ + b) as i32,
+                                    (ty * ty_ + ly) as i32,
+                                    (tz * tz_ + lz) as i32,
+                                );
+                                ((origin + d).as_uvec3(), f32::NEG_INFINITY)
                             };
-                            out.push((p, v));
                         }
                     }
                 }
             }
         }
     }
-    *cells = out;
+    debug_assert!(j == 0 && w == 0);
     Ok(())
 }
 
