@@ -145,7 +145,7 @@ fn shift_down(row: &[u64], out: &mut [u64]) {
 }
 
 /// `out` = the runs of `free` (along x) that contain a bit of `seed`.
-fn fill_runs(seed: &[u64], free: &[u64], out: &mut [u64]) {
+pub(crate) fn fill_runs(seed: &[u64], free: &[u64], out: &mut [u64]) {
     let w = free.len();
     // Up: adding the seeds to the free mask clears each run from its lowest seed upwards.
     let mut carry = false;

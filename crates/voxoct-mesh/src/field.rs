@@ -1,6 +1,8 @@
 //! From marked cells to the cell field that is marched: weak-cell rejection, small-component
-//! removal, floor, and the flood fill that separates the outside from enclosed space (over a
-//! dense box of bits, see the `bitbox` module).
+//! removal, floor, and the flood fill that separates the outside from enclosed space: over a
+//! dense box of bits (the `bitbox` module) while the cells' box is small, in tiles (the
+//! `tiled` module, memory that follows the marked cells) past [`FILL_LIMIT`]; both give the
+//! same cells.
 
 use std::collections::HashMap;
 
@@ -13,8 +15,16 @@ use crate::mesh::Dsu;
 use crate::options::{Floor, MeshError, MeshOptions, Placement};
 use crate::tables::corner_offset;
 
-/// Largest dense box (in cells) the flood fill will allocate, at under 2 bytes per cell.
+mod tiled;
+
+/// Largest box (in cells) the fill works on densely, at under 2 bytes per cell; a larger box
+/// is filled in tiles (the `tiled` module), whose memory follows the marked cells instead of
+/// the box. Both give the same cells; the dense box is faster while it fits.
 pub const FILL_LIMIT: u64 = 1 << 28;
+
+/// Largest tile grid the tiled fill will allocate (4 bytes a tile of
+/// [`tiled::TILE_CELLS`] cells): past it the box is absurd, not a scene.
+const TILE_GRID_LIMIT: u64 = 1 << 26;
 
 /// The seven positive Kuhn edge directions (the mesh's connectivity between cells).
 fn kuhn_dirs() -> [IVec3; 7] {
@@ -245,7 +255,11 @@ fn enclosed(marked: &BitBox, closed_bottom: bool, gap: u32) -> BitBox {
 ///
 /// Connected groups of marked cells smaller than `min_component` are dropped first. With
 /// `specks = Some((min, inside))`, connected groups of inside cells smaller than `min` are
-/// dropped at the end. The cells come out in z, y, x order.
+/// dropped at the end. The cells come out in z, y, x order. Boxes past [`FILL_LIMIT`] cells
+/// are filled in tiles ([`fill_enclosed_tiled`]), to the same cells.
+///
+/// # Errors
+/// [`MeshError::FillTooLarge`] only past [`TILE_GRID_LIMIT`] tiles.
 fn fill_enclosed(
     cells: &mut Vec<(UVec3, f32)>,
     floor: Option<u32>,
@@ -253,7 +267,25 @@ fn fill_enclosed(
     min_component: usize,
     specks: Option<(usize, Inside)>,
 ) -> Result<(), MeshError> {
-    let (lo, n) = fill_box(cells, floor, max_gap)?;
+    let (lo, n) = fill_box(cells, floor, max_gap);
+    let total = n.iter().map(|&d| d as u64).product::<u64>();
+    if total > FILL_LIMIT {
+        fill_enclosed_tiled(cells, (lo, n), floor, max_gap, min_component, specks)
+    } else {
+        fill_enclosed_dense(cells, (lo, n), floor, max_gap, min_component, specks);
+        Ok(())
+    }
+}
+
+/// [`fill_enclosed`] on a dense box of `n` cells from `lo` (border included).
+fn fill_enclosed_dense(
+    cells: &mut Vec<(UVec3, f32)>,
+    (lo, n): (IVec3, [usize; 3]),
+    floor: Option<u32>,
+    max_gap: u32,
+    min_component: usize,
+    specks: Option<(usize, Inside)>,
+) {
     let values = BoxValues::new(cells, lo, n);
     let mut marked = values.marked.clone();
     remove_small_groups(&mut marked, min_component);
@@ -267,16 +299,137 @@ fn fill_enclosed(
         drop_specks(&mut keep, &marked, &chosen, &values, min, inside);
     }
     values.write_cells(cells, &keep, &marked);
+}
+
+/// [`fill_enclosed`] on tiles ([`tiled::Tiled`]) for a box of `n` cells from `lo` (border
+/// included): the same cells in the same order, with memory that follows the marked cells
+/// instead of the box. The tiled box is the dense one without its border (everything beyond
+/// counts as the border did), rounded up to whole tiles at its far faces: the added cells
+/// are free and next to the faces the outside starts from, so they change nothing inside.
+fn fill_enclosed_tiled(
+    cells: &mut Vec<(UVec3, f32)>,
+    (lo, n): (IVec3, [usize; 3]),
+    floor: Option<u32>,
+    max_gap: u32,
+    min_component: usize,
+    specks: Option<(usize, Inside)>,
+) -> Result<(), MeshError> {
+    let origin = lo + IVec3::ONE;
+    let t = [
+        (n[0] - 2).div_ceil(tiled::TX),
+        (n[1] - 2).div_ceil(tiled::TY),
+        (n[2] - 2).div_ceil(tiled::TZ),
+    ];
+    let tiles = t.iter().map(|&a| a as u64).product::<u64>();
+    if tiles > TILE_GRID_LIMIT {
+        return Err(MeshError::FillTooLarge {
+            cells: n.iter().map(|&a| a as u64).product(),
+            limit: TILE_GRID_LIMIT * tiled::TILE_CELLS,
+        });
+    }
+    // Box order (z, y, x); of repeated coordinates the last counts, as in the dense box.
+    cells.sort_by_key(|c| (c.0.z, c.0.y, c.0.x));
+    let mut kept = 0;
+    for r in 0..cells.len() {
+        if r + 1 < cells.len() && cells[r].0 == cells[r + 1].0 {
+            continue;
+        }
+        cells[kept] = cells[r];
+        kept += 1;
+    }
+    cells.truncate(kept);
+    let local = |c: UVec3| (c.as_ivec3() - origin).as_uvec3();
+    let mut marked = tiled::Tiled::new(t);
+    for c in cells.iter() {
+        let q = local(c.0);
+        marked.set(q.x as usize, q.y as usize, q.z as usize);
+    }
+    tiled::remove_small_groups(&mut marked, min_component);
+    let closed_bottom = floor.is_some();
+    let widest = tiled::enclosed(&marked, closed_bottom, max_gap);
+    let reference = widest.count();
+    let mut chosen = widest;
+    for gap in 0..max_gap {
+        let v = tiled::enclosed(&marked, closed_bottom, gap);
+        if 2 * v.count() >= reference {
+            chosen = v;
+            break;
+        }
+    }
+    let mut keep = marked.or(&chosen);
+    if let Some((min, inside)) = specks {
+        let mut by_value = tiled::Tiled::new(t);
+        for c in cells.iter().filter(|c| inside.test(c.1)) {
+            let q = local(c.0);
+            by_value.set(q.x as usize, q.y as usize, q.z as usize);
+        }
+        let mut ins = by_value.and(&marked);
+        drop(by_value);
+        if inside.test(f32::NEG_INFINITY) {
+            ins = ins.or(&chosen);
+        }
+        let mut big = ins.clone();
+        tiled::remove_small_groups(&mut big, min);
+        keep = keep.and_not(&ins.and_not(&big));
+    }
+    drop(chosen);
+    // The kept cells in box order, in place: the kept marked cells (sorted) stay, then the
+    // enclosed ones are merged in from the back (each written slot is at or after the
+    // marked cell still to be read).
+    let (tx_, ty_, tz_) = (tiled::TX, tiled::TY, tiled::TZ);
+    let slot = |c: UVec3| {
+        let q = local(c);
+        let (x, y, z) = (q.x as usize, q.y as usize, q.z as usize);
+        (
+            (z / tz_ * t[1] + y / ty_) * t[0] + x / tx_,
+            (z % tz_) * ty_ + y % ty_,
+            x % tx_,
+        )
+    };
+    cells.retain(|c| {
+        let (i, r, b) = slot(c.0);
+        (keep.word(i, r) & marked.word(i, r)) >> b & 1 == 1
+    });
+    let mut j = cells.len();
+    let mut w = keep.count() as usize;
+    cells.resize(w, (UVec3::ZERO, 0.0));
+    for tz in (0..t[2]).rev() {
+        for lz in (0..tz_).rev() {
+            for ty in (0..t[1]).rev() {
+                for ly in (0..ty_).rev() {
+                    let r = lz * ty_ + ly;
+                    for tx in (0..t[0]).rev() {
+                        let i = (tz * t[1] + ty) * t[0] + tx;
+                        let mut bits = keep.word(i, r);
+                        let m = marked.word(i, r);
+                        while bits != 0 {
+                            let b = 63 - bits.leading_zeros() as usize;
+                            bits &= !(1u64 << b);
+                            w -= 1;
+                            cells[w] = if m >> b & 1 == 1 {
+                                j -= 1;
+                                cells[j]
+                            } else {
+                                let d = IVec3::new(
+                                    (tx * tx_ + b) as i32,
+                                    (ty * ty_ + ly) as i32,
+                                    (tz * tz_ + lz) as i32,
+                                );
+                                ((origin + d).as_uvec3(), f32::NEG_INFINITY)
+                            };
+                        }
+                    }
+                }
+            }
+        }
+    }
+    debug_assert!(j == 0 && w == 0);
     Ok(())
 }
 
 /// The box the flood fill runs in: the cells' bounds padded by one free layer beyond any
 /// closing plus the sentinel border, cut at the floor (its minimum corner and size).
-fn fill_box(
-    cells: &[(UVec3, f32)],
-    floor: Option<u32>,
-    max_gap: u32,
-) -> Result<(IVec3, [usize; 3]), MeshError> {
+fn fill_box(cells: &[(UVec3, f32)], floor: Option<u32>, max_gap: u32) -> (IVec3, [usize; 3]) {
     let mut lo = IVec3::splat(i32::MAX);
     let mut hi = IVec3::splat(i32::MIN);
     for c in cells {
@@ -290,14 +443,7 @@ fn fill_box(
         lo.y = f as i32 - 1;
     }
     let dim = (hi - lo + IVec3::ONE).as_uvec3();
-    let total = u64::from(dim.x) * u64::from(dim.y) * u64::from(dim.z);
-    if total > FILL_LIMIT {
-        return Err(MeshError::FillTooLarge {
-            cells: total,
-            limit: FILL_LIMIT,
-        });
-    }
-    Ok((lo, [dim.x as usize, dim.y as usize, dim.z as usize]))
+    (lo, [dim.x as usize, dim.y as usize, dim.z as usize])
 }
 
 /// The input cells as bits of the fill box, and their values in box order: cell `k` of
@@ -424,5 +570,128 @@ fn drop_specks(
     remove_small_groups(&mut ins, min);
     for ((k, b), a) in keep.bits.iter_mut().zip(&before.bits).zip(&ins.bits) {
         *k &= !(b & !a);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Random cells: blobs (hollow shells with holes, solid lumps) and specks in a small box.
+    fn scene() -> impl Strategy<Value = Vec<(UVec3, f32)>> {
+        // Across tiles along every axis (64 × 16 × 16 cells each).
+        let blob = (2u32..150, 2u32..40, 2u32..40, 1u32..12, 0u8..3);
+        let specks = prop::collection::vec((0u32..160, 0u32..50, 0u32..50, -1.0f32..1.0), 0..40);
+        (prop::collection::vec(blob, 1..6), specks, any::<u64>()).prop_map(|(blobs, sp, seed)| {
+            let mut out = Vec::new();
+            let mut h = seed | 1;
+            let mut rnd = move || {
+                h ^= h << 13;
+                h ^= h >> 7;
+                h ^= h << 17;
+                h
+            };
+            for (cx, cy, cz, r, kind) in blobs {
+                let r = r as i32;
+                for z in -r..=r {
+                    for y in -r..=r {
+                        for x in -r..=r {
+                            let d2 = x * x + y * y + z * z;
+                            let shell = d2 <= r * r && d2 > (r - 1) * (r - 1);
+                            let keep = match kind {
+                                0 => shell,
+                                1 => shell && rnd() % 7 != 0,
+                                _ => d2 <= r * r && rnd() % 3 != 0,
+                            };
+                            let p = IVec3::new(cx as i32 + x, cy as i32 + y, cz as i32 + z);
+                            if keep && p.cmpge(IVec3::ZERO).all() {
+                                let v = (rnd() % 200) as f32 / 100.0 - 1.0;
+                                out.push((p.as_uvec3(), v));
+                            }
+                        }
+                    }
+                }
+            }
+            out.extend(sp.into_iter().map(|(x, y, z, v)| (UVec3::new(x, y, z), v)));
+            out
+        })
+    }
+
+    /// Both fills on `cells`; asserts they agree and returns the count of enclosed cells.
+    fn both(cells: &[(UVec3, f32)], floor: Option<u32>, gap: u32, min: usize) -> usize {
+        let boxed = fill_box(cells, floor, gap);
+        let specks = Some((min, Inside::NonPositive));
+        let mut dense = cells.to_vec();
+        fill_enclosed_dense(&mut dense, boxed, floor, gap, min, specks);
+        let mut tiles = cells.to_vec();
+        fill_enclosed_tiled(&mut tiles, boxed, floor, gap, min, specks).unwrap();
+        assert_eq!(dense.len(), tiles.len());
+        assert!(
+            dense
+                .iter()
+                .zip(&tiles)
+                .all(|(a, b)| a.0 == b.0 && a.1.to_bits() == b.1.to_bits())
+        );
+        dense.iter().filter(|c| c.1 == f32::NEG_INFINITY).count()
+    }
+
+    /// A long box shell (whole tiles inside it, full and clear ones) with a hole: closed by
+    /// the gap, or open without; a cavity in a solid wall; the floor as its bottom.
+    #[test]
+    fn large_shells_agree_with_dense() {
+        let (a, b) = (UVec3::new(3, 5, 4), UVec3::new(200, 60, 45));
+        let mut cells = Vec::new();
+        for z in a.z..=b.z {
+            for y in a.y..=b.y {
+                for x in a.x..=b.x {
+                    let p = UVec3::new(x, y, z);
+                    let face = p.cmpeq(a).any() || p.cmpeq(b).any();
+                    let hole = x == 100 && y == 30 && z == a.z;
+                    if face && !hole {
+                        cells.push((p, -0.25));
+                    }
+                }
+            }
+        }
+        let inner = (b - a - UVec3::splat(1)).as_ivec3();
+        let volume = (inner.x * inner.y * inner.z) as usize;
+        assert_eq!(both(&cells, None, 1, 8), volume + 1);
+        assert_eq!(both(&cells, None, 0, 8), 0);
+        // Without its bottom face, standing on the floor.
+        let open: Vec<_> = cells.iter().copied().filter(|c| c.0.y != a.y).collect();
+        assert!(both(&open, Some(a.y), 1, 8) > volume / 2);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// The tiled fill gives exactly the dense fill's cells, values and order.
+        #[test]
+        fn tiled_fill_equals_dense(
+            cells in scene(),
+            floor in prop::option::of(0u32..20),
+            gap in 0u32..4,
+            min_component in 0usize..30,
+            specks in prop::option::of((1usize..40, 0u8..3)),
+        ) {
+            let mut cells = cells;
+            if let Some(f) = floor {
+                cells.retain(|c| c.0.y >= f);
+            }
+            prop_assume!(!cells.is_empty());
+            let specks = specks.map(|(m, k)| {
+                (m, [Inside::Marked, Inside::NotExterior, Inside::NonPositive][k as usize])
+            });
+            let boxed = fill_box(&cells, floor, gap);
+            let mut dense = cells.clone();
+            fill_enclosed_dense(&mut dense, boxed, floor, gap, min_component, specks);
+            let mut tiles = cells;
+            fill_enclosed_tiled(&mut tiles, boxed, floor, gap, min_component, specks).unwrap();
+            prop_assert_eq!(dense.len(), tiles.len());
+            for (a, b) in dense.iter().zip(&tiles) {
+                prop_assert_eq!(a.0, b.0);
+                prop_assert_eq!(a.1.to_bits(), b.1.to_bits());
+            }
+        }
     }
 }
