@@ -67,18 +67,20 @@ pub struct Params {
     pub check_agreement: bool,
     /// Simplify the mesh after dropping small pieces ([`voxoct_mesh::simplify`]: quadric edge
     /// collapse that keeps it closed, manifold and free of new self-intersections); `None`
-    /// keeps every triangle. Off by default until it is fast enough to be (issue 14); use
-    /// [`Simplify::for_leaf`] of `leaf_m`.
+    /// keeps every triangle. The default is [`Simplify::for_leaf`] of the default `leaf_m`
+    /// (an absolute bound, 0.25 mm): set it anew when changing `leaf_m` or `lod`.
     pub simplify: Option<Simplify>,
 }
 
 impl Default for Params {
     /// 1 mm leaves in a 1 m root, the default filter, 1 cm triangle edges, the best-quality
-    /// meshing ([`MeshOptions::smooth`]).
+    /// meshing ([`MeshOptions::smooth`]), simplified within a quarter leaf
+    /// ([`Simplify::for_leaf`]).
     fn default() -> Self {
+        let leaf_m = 0.001;
         Self {
             filter: FilterChain::default(),
-            leaf_m: 0.001,
+            leaf_m,
             root_m: 1.0,
             max_edge_sq: DEFAULT_MAX_EDGE_SQ,
             lod: 0,
@@ -86,7 +88,7 @@ impl Default for Params {
             carve: true,
             check_agreement: true,
             min_piece_fraction: 0.01,
-            simplify: None,
+            simplify: Some(Simplify::for_leaf(leaf_m)),
         }
     }
 }

@@ -135,9 +135,66 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
     );
 }
 
+/// The mesh triangles and validity a small simulated scan reports with `extra` flags.
+fn sphere_stats(extra: &[&str]) -> (u64, bool, u64) {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        &[
+            "--builtin",
+            "sphere",
+            "--snapshots",
+            "4",
+            "--frames",
+            "1",
+            "--leaf",
+            "0.003",
+            "--stats",
+            "s.json",
+            "--out",
+            "s.stl",
+            "-q",
+        ][..],
+        extra,
+    ]
+    .concat();
+    let out = scan(&args, dir.path());
+    assert!(
+        out.status.success(),
+        "{extra:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("s.json")).unwrap()).unwrap();
+    (
+        stats["mesh_triangles"].as_u64().unwrap(),
+        stats["valid_solid"].as_bool().unwrap(),
+        stats["self_intersecting_triangles"].as_u64().unwrap(),
+    )
+}
+
+#[test]
+fn simplification_is_on_by_default_and_off_with_no_simplify_and_thesis() {
+    let (simplified, valid, selfx) = sphere_stats(&[]);
+    let (full, full_valid, _) = sphere_stats(&["--no-simplify"]);
+    assert!(valid && full_valid && selfx == 0);
+    assert!(
+        simplified * 3 < full,
+        "default {simplified} triangles, --no-simplify {full}"
+    );
+    // --thesis keeps every triangle unless simplification is asked for.
+    let (thesis, _, _) = sphere_stats(&["--thesis"]);
+    let (thesis_full, _, _) = sphere_stats(&["--thesis", "--no-simplify"]);
+    let (thesis_simplified, thesis_valid, _) =
+        sphere_stats(&["--thesis", "--max-error", "0.00075"]);
+    assert_eq!(thesis, thesis_full);
+    assert!(thesis_valid && thesis_simplified < thesis);
+}
+
 #[test]
 fn bad_flags_fail_cleanly() {
     assert_fails(&["--leaf", "2", "--root", "1"], "--leaf");
+    assert_fails(&["--no-simplify", "--max-error", "0.001"], "--no-simplify");
+    assert_fails(&["--no-simplify", "--triangles", "1000"], "--no-simplify");
     assert_fails(&["--leaf", "-0.001"], "--leaf");
     assert_fails(&["--threshold", "-1"], "--threshold");
     assert_fails(&["--snapshots", "0"], "--snapshots");

@@ -199,8 +199,9 @@ pub struct Args {
     /// Taubin smoothing iterations (0 = none) [default: 10; with --thesis: 0].
     #[arg(long, value_name = "N", help_heading = "Meshing")]
     pub smooth: Option<u32>,
-    /// Simplify the mesh (quadric edge collapse, closed and valid kept) with this largest
-    /// error, metres; a quarter of --leaf is a good value. Off unless this or --triangles.
+    /// Largest error of the simplification (quadric edge collapse, closed and valid kept),
+    /// metres [default: a quarter of the meshed cell, --leaf · 2^--lod; with --thesis: no
+    /// simplification unless this or --triangles is given].
     #[arg(
         long,
         allow_negative_numbers = true,
@@ -208,9 +209,12 @@ pub struct Args {
         help_heading = "Meshing"
     )]
     pub max_error: Option<f32>,
-    /// Simplify down to at most N triangles (within --max-error, default a quarter leaf).
+    /// Simplify down to at most N triangles (within --max-error).
     #[arg(long, value_name = "N", help_heading = "Meshing")]
     pub triangles: Option<usize>,
+    /// Keep every triangle of the marched, smoothed mesh (no simplification).
+    #[arg(long, conflicts_with_all = ["max_error", "triangles"], help_heading = "Meshing")]
+    pub no_simplify: bool,
     /// Leaves hit by fewer triangles count as empty (rejects single errant readings).
     #[arg(long, value_name = "N", default_value_t = MeshOptions::smooth().min_hits, help_heading = "Meshing")]
     pub min_hits: u32,
@@ -338,12 +342,22 @@ impl Args {
             carve: !self.no_carve,
             check_agreement: true,
             min_piece_fraction: self.min_piece,
-            simplify: (self.max_error.is_some() || self.triangles.is_some()).then(|| Simplify {
-                max_error: self
-                    .max_error
-                    .unwrap_or(Simplify::LEAF_FRACTION * self.leaf),
-                target_triangles: self.triangles,
-            }),
+            simplify: self.simplify(),
+        })
+    }
+
+    /// The simplification `--max-error`, `--triangles`, `--no-simplify` and `--thesis` ask
+    /// for: on by default with [`Simplify::for_leaf`] of the meshed cell (`--leaf · 2^--lod`);
+    /// off with `--no-simplify`, and with `--thesis` unless asked for by the other two.
+    fn simplify(&self) -> Option<Simplify> {
+        let asked = self.max_error.is_some() || self.triangles.is_some();
+        if self.no_simplify || (self.thesis && !asked) {
+            return None;
+        }
+        let cell = self.leaf * 2f32.powi(self.lod.min(30) as i32);
+        Some(Simplify {
+            max_error: self.max_error.unwrap_or(Simplify::for_leaf(cell).max_error),
+            target_triangles: self.triangles,
         })
     }
 

@@ -48,24 +48,31 @@ pub(super) struct Collapser<'a> {
     pub(super) target: usize,
     pub(super) passes: usize,
     pub(super) collapses: usize,
+    /// Every collapse made, `(u, w)` in order, and where each pass's collapses end: a
+    /// later round replays them ([`Collapser::replay`]).
+    pub(super) log: Vec<(u32, u32)>,
+    pub(super) pass_ends: Vec<usize>,
     pub(super) ring_u: Vec<u32>,
     pub(super) ring_w: Vec<u32>,
     pub(super) normals: Vec<(Vec3, u32, u32)>,
 }
 
 impl<'a> Collapser<'a> {
+    /// The state before any collapse of `mesh` (numbered by first use), whose quadrics and
+    /// normals are given.
     pub(super) fn new(
-        mesh: &Mesh,
-        quadrics: &[(Quadric, Vec3)],
+        mesh: Mesh,
+        (quad, nrm): (Vec<Quadric>, Vec<Vec3>),
         frozen: &'a [bool],
         opts: &Simplify,
     ) -> Self {
         let nv = mesh.vertices.len();
+        let origin = origin(&mesh);
         Self {
-            pos: mesh.vertices.clone(),
-            tris: mesh.triangles.clone(),
-            quad: quadrics.iter().map(|q| q.0).collect(),
-            nrm: quadrics.iter().map(|q| q.1).collect(),
+            pos: mesh.vertices,
+            tris: mesh.triangles,
+            quad,
+            nrm,
             parent: (0..nv as u32).collect(),
             moved: vec![false; nv],
             frozen,
@@ -73,11 +80,13 @@ impl<'a> Collapser<'a> {
             active: vec![true; nv],
             next_active: vec![false; nv],
             csr: VertexFans::default(),
-            origin: origin(mesh),
+            origin,
             max_sq: f64::from(opts.max_error) * f64::from(opts.max_error),
             target: opts.target_triangles.unwrap_or(0),
             passes: 0,
             collapses: 0,
+            log: Vec::new(),
+            pass_ends: Vec::new(),
             ring_u: Vec::new(),
             ring_w: Vec::new(),
             normals: Vec::new(),
@@ -92,16 +101,54 @@ impl<'a> Collapser<'a> {
             self.csr.rebuild(self.pos.len(), &self.tris, |_| true, true);
             self.candidates(&mut cands);
             counting_sort(&cands, &mut sorted);
-            let made = self.collapse_pass(&sorted);
+            let made = self.collapse_pass(&cands, &sorted);
             if made == 0 {
                 break;
             }
             std::mem::swap(&mut self.active, &mut self.next_active);
             self.next_active.iter_mut().for_each(|a| *a = false);
             self.collapses += made;
-            self.tris
-                .retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+            self.pass_ends.push(self.log.len());
+            self.drop_degenerate();
         }
+    }
+
+    /// Replays the collapses of an earlier round (`log`, its passes ending at `pass_ends`)
+    /// in their order, pass by pass, skipping those with a frozen end and those the checks
+    /// now refuse; each made one is re-placed at its quadric's minimum. No candidate is
+    /// evaluated and nothing is sorted: a fraction of the cost of [`Collapser::run`]. The
+    /// result is that round's result with the collapses around frozen vertices left out.
+    pub(super) fn replay(&mut self, log: &[(u32, u32)], pass_ends: &[usize]) {
+        let mut begin = 0;
+        for &end in pass_ends {
+            self.passes += 1;
+            self.csr.rebuild(self.pos.len(), &self.tris, |_| true, true);
+            let mut made = 0;
+            for &(u, w) in &log[begin..end] {
+                if self.frozen[u as usize] || self.frozen[w as usize] {
+                    continue;
+                }
+                if let Some(c) = self.cost(u, w)
+                    && self.allowed(u, w, c.p)
+                {
+                    self.apply(&c);
+                    made += 1;
+                }
+            }
+            begin = end;
+            if made == 0 {
+                continue;
+            }
+            self.collapses += made;
+            self.pass_ends.push(self.log.len());
+            self.drop_degenerate();
+        }
+    }
+
+    /// Drops the triangles collapsed to an edge.
+    fn drop_degenerate(&mut self) {
+        self.tris
+            .retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
     }
 
     /// Every edge's best collapse within the error bound.
@@ -153,11 +200,11 @@ impl<'a> Collapser<'a> {
     }
 
     /// Collapses greedily in the given order; returns the number made.
-    pub(super) fn collapse_pass(&mut self, sorted: &[Candidate]) -> usize {
+    pub(super) fn collapse_pass(&mut self, cands: &[Candidate], order: &[u32]) -> usize {
         self.locked.iter_mut().for_each(|l| *l = false);
         let mut made = 0;
         let mut live = self.tris.len();
-        for c in sorted {
+        for c in order.iter().map(|&i| &cands[i as usize]) {
             if live <= self.target {
                 break;
             }
@@ -169,6 +216,17 @@ impl<'a> Collapser<'a> {
             if !self.allowed(c.u, c.w, c.p) {
                 continue;
             }
+            self.apply(c);
+            made += 1;
+            live -= 2;
+        }
+        made
+    }
+
+    /// Collapses `c.u` into `c.w` at `c.p` (checked by [`Collapser::allowed`] just before:
+    /// its rings are in `ring_u` and `ring_w`).
+    fn apply(&mut self, c: &Candidate) {
+        {
             let (u, w) = (c.u as usize, c.w as usize);
             self.parent[u] = c.w;
             for i in self.csr.start[u]..self.csr.start[u + 1] {
@@ -202,10 +260,8 @@ impl<'a> Collapser<'a> {
                 self.next_active[x as usize] = true;
             }
             self.moved[w] = true;
-            made += 1;
-            live -= 2;
+            self.log.push((c.u, c.w));
         }
-        made
     }
 
     /// The live corners of `v`: (next, previous) of each triangle of `v` that no collapse
@@ -269,22 +325,23 @@ impl<'a> Collapser<'a> {
         old_sum: &mut Vec3,
     ) -> bool {
         let cos_min = MAX_NORMAL_TURN_DEG.to_radians().cos();
+        let a = self.pos[v as usize];
+        let ends = self.nrm[v as usize] + self.nrm[other as usize];
         for [bi, ci] in self.live_corners(v) {
             if bi == other || ci == other {
                 continue;
             }
             let b = self.pos[bi as usize];
             let c = self.pos[ci as usize];
-            let a = self.pos[v as usize];
             let n_old = (b - a).cross(c - a);
             let n_new = (b - p).cross(c - p);
             let (lo, ln) = (n_old.length(), n_new.length());
+            if !greater(n_old.dot(n_new), cos_min * lo * ln) {
+                return false;
+            }
             // Never against the original surface: the new triangle faces the way the
             // original triangles merged into its corners face on the whole.
-            let reference = self.nrm[v as usize]
-                + self.nrm[other as usize]
-                + self.nrm[bi as usize]
-                + self.nrm[ci as usize];
+            let reference = ends + self.nrm[bi as usize] + self.nrm[ci as usize];
             if !greater(
                 n_new.dot(reference),
                 REFERENCE_COS_MIN * ln * reference.length(),
@@ -293,9 +350,6 @@ impl<'a> Collapser<'a> {
             }
             *old_sum += n_old;
             normals.push((n_new, bi, ci));
-            if !greater(n_old.dot(n_new), cos_min * lo * ln) {
-                return false;
-            }
             let q_new = quality(ln, p, b, c);
             if q_new < MIN_QUALITY_ABSOLUTE || (q_new < MIN_QUALITY && q_new < quality(lo, a, b, c))
             {
@@ -313,8 +367,13 @@ impl Collapser<'_> {
     pub(super) fn no_local_folds(&self, u: u32, w: u32, p: Vec3, fan: &[(Vec3, u32, u32)]) -> bool {
         let pd = p.as_dvec3();
         let at = |k: u32| self.pos[k as usize].as_dvec3();
-        // Each outer vertex once (as the first vertex of its outgoing outer edge).
-        for &(_, x, _) in fan {
+        // Each outer vertex x once (as the first outer vertex of its new triangle), its old
+        // triangles (those of the collapsed edge's fans excepted) against the two new
+        // triangles that hold x.
+        for (i, &(_, x, _)) in fan.iter().enumerate() {
+            let Some(j) = fan.iter().position(|f| f.2 == x) else {
+                continue;
+            };
             for [n, q] in self.live_corners(x) {
                 let tt = [x, n, q];
                 if tt.contains(&u) || tt.contains(&w) {
@@ -322,24 +381,25 @@ impl Collapser<'_> {
                 }
                 let [a0, a1, a2] = tt.map(|k| self.pos[k as usize]);
                 let nt = (a1 - a0).cross(a2 - a0);
-                for &(nn, b, c) in fan {
-                    if b != x && c != x || nn.dot(nt) >= 0.0 {
+                for &(nn, b, c) in [&fan[i], &fan[j]] {
+                    let d = nn.dot(nt);
+                    if d >= 0.0 {
                         continue;
                     }
-                    let shared_edge = tt.contains(&b) && tt.contains(&c);
-                    if shared_edge {
-                        if nn.dot(nt) < -FOLD_COS * nn.length() * nt.length() {
+                    if tt.contains(&b) && tt.contains(&c) {
+                        // Sharing an outer edge: they must not fold flat onto each other.
+                        if d < -FOLD_COS * nn.length() * nt.length() {
                             return false;
                         }
                         continue;
                     }
                     let tri_new = [pd, at(b), at(c)];
                     let tri_old = tt.map(at);
-                    let kx = tt.iter().position(|&k| k == x).unwrap_or(0);
-                    let (o1, o2) = (tri_old[(kx + 1) % 3], tri_old[(kx + 2) % 3]);
-                    let (n1, n2) = if b == x { (pd, at(c)) } else { (pd, at(b)) };
-                    if crate::collide::segment_triangle(o1, o2, tri_new)
-                        || crate::collide::segment_triangle(n1, n2, tri_old)
+                    // The old triangle's edge opposite x, and the new triangle's edge from
+                    // p to its other outer vertex.
+                    let other = if b == x { c } else { b };
+                    if crate::collide::segment_triangle(tri_old[1], tri_old[2], tri_new)
+                        || crate::collide::segment_triangle(pd, at(other), tri_old)
                     {
                         return false;
                     }
@@ -393,8 +453,9 @@ pub(super) fn link_condition(w: u32, ring_u: &[u32], ring_w: &[u32]) -> bool {
     common == 2
 }
 
-/// Orders candidates by the leading bits of their key (a counting sort: stable, linear).
-pub(super) fn counting_sort(cands: &[Candidate], out: &mut Vec<Candidate>) {
+/// The candidates' indices ordered by the leading bits of their keys (a counting sort:
+/// stable, linear; indices rather than copies keep the memory small).
+pub(super) fn counting_sort(cands: &[Candidate], out: &mut Vec<u32>) {
     const BUCKETS: usize = 1 << (32 - KEY_SHIFT - 1);
     let mut count = [0u32; BUCKETS + 1];
     for c in cands {
@@ -404,18 +465,10 @@ pub(super) fn counting_sort(cands: &[Candidate], out: &mut Vec<Candidate>) {
         count[i + 1] += count[i];
     }
     out.clear();
-    out.resize(
-        cands.len(),
-        Candidate {
-            key: 0,
-            u: 0,
-            w: 0,
-            p: Vec3::ZERO,
-        },
-    );
-    for c in cands {
+    out.resize(cands.len(), 0);
+    for (i, c) in cands.iter().enumerate() {
         let slot = &mut count[(c.key >> KEY_SHIFT) as usize];
-        out[*slot as usize] = *c;
+        out[*slot as usize] = i as u32;
         *slot += 1;
     }
 }

@@ -3,9 +3,7 @@
 use voxoct_core::glam::{DVec3, Vec3};
 
 use super::collapse::greater;
-use crate::fans::VertexFans;
 use crate::mesh::Mesh;
-use crate::par;
 
 /// A symmetric 4×4 quadric (upper triangle, row by row) and its weight.
 #[derive(Debug, Clone, Copy, Default)]
@@ -104,37 +102,31 @@ impl Quadric {
 pub(super) const RIDGE: f64 = 1e-3;
 
 /// Per-vertex quadrics of `mesh` (in coordinates relative to its first vertex) and
-/// area-weighted normals.
-pub(super) fn initial_quadrics(mesh: &Mesh) -> Vec<(Quadric, Vec3)> {
+/// area-weighted normals: each triangle's plane and normal added to its three corners (one
+/// pass in triangle order; the vertices are numbered by first use, so the writes are local).
+pub(super) fn initial_quadrics(mesh: &Mesh) -> (Vec<Quadric>, Vec<Vec3>) {
     let o = origin(mesh);
-    let planes: Vec<Quadric> = {
-        let mut v = Vec::new();
-        par::map_into(&mut v, mesh.triangles.len(), |i| {
-            let [a, b, c] = mesh.triangles[i].map(|k| mesh.vertices[k as usize].as_dvec3() - o);
-            let n = (b - a).cross(c - a);
-            let len = n.length();
-            if len > 0.0 {
-                let n = n / len;
-                Quadric::plane(n, -n.dot(a), len / 6.0)
-            } else {
-                Quadric::default()
-            }
-        });
-        v
-    };
-    let csr = VertexFans::new(mesh.vertices.len(), &mesh.triangles, |_| true, false);
-    let mut out = Vec::new();
-    par::map_into(&mut out, mesh.vertices.len(), |v| {
-        let mut q = Quadric::default();
-        let mut n = Vec3::ZERO;
-        for &t in csr.fan(v as u32) {
-            q.add(&planes[t as usize]);
-            let [a, b, c] = mesh.triangles[t as usize].map(|k| mesh.vertices[k as usize]);
-            n += (b - a).cross(c - a);
+    let nv = mesh.vertices.len();
+    let mut quad = vec![Quadric::default(); nv];
+    let mut nrm = vec![Vec3::ZERO; nv];
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|k| mesh.vertices[k as usize]);
+        let nf = (b - a).cross(c - a);
+        let [ad, bd, cd] = [a, b, c].map(|p| p.as_dvec3() - o);
+        let n = (bd - ad).cross(cd - ad);
+        let len = n.length();
+        let plane = if len > 0.0 {
+            let n = n / len;
+            Quadric::plane(n, -n.dot(ad), len / 6.0)
+        } else {
+            Quadric::default()
+        };
+        for &k in t {
+            quad[k as usize].add(&plane);
+            nrm[k as usize] += nf;
         }
-        (q, n)
-    });
-    out
+    }
+    (quad, nrm)
 }
 
 /// The origin of the quadrics' coordinates.
