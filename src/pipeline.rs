@@ -658,14 +658,20 @@ fn close_unseen(
             object_to_camera: config.rig.camera_to_object(angle).inverse(),
         })
         .collect();
-    // Two standard deviations of the sensor's depth noise at the object's distance,
-    // plus half a cell diagonal.
-    let distance = config.rig.sensor_position_m.length();
-    let margin = 2.0 * kinect_v1_sigma(distance) + 0.87 * grid.cell;
     let floor = closure_floor(options, grid);
     let Some((lo, hi)) = closure_box(&cells, grid, floor) else {
         return cells;
     };
+    // Two standard deviations of the sensor's depth noise at the distance of the box's
+    // centre (the object on the turntable, or the middle of a scene), plus half a cell
+    // diagonal.
+    let camera = config
+        .rig
+        .camera_to_object(0.0)
+        .transform_point3(Vec3::ZERO);
+    let centre = (grid.cell_center(lo) + grid.cell_center(hi)) * 0.5;
+    let distance = centre.distance(camera);
+    let margin = 2.0 * kinect_v1_sigma(distance) + 0.87 * grid.cell;
     let seen = visibility(&views, grid, lo, hi, margin);
     let dim = hi - lo + UVec3::ONE;
     // The distance at which invented surface costs twice as much as surface next to an
