@@ -896,13 +896,7 @@ mod tests {
     /// and corner (5) steps, by brute force over every pair of cells.
     #[test]
     fn the_chamfer_distance_is_the_shortest_path_of_steps() {
-        let mut seed = 0x1234_5678_9abc_def1u64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut next = xorshift(0x1234_5678_9abc_def1);
         for _ in 0..20 {
             let dims = [
                 5 + (next() % 4) as usize,
@@ -958,20 +952,22 @@ mod tests {
         }
     }
 
-    /// Tiny boxes with random face prices: the weighted cut is minimal (checked against
-    /// every labelling of the unknown cells).
-    #[test]
-    fn the_weighted_cut_is_minimal_on_small_random_boxes() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
+    /// A xorshift generator for the randomised tests.
+    fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
+        move || {
             seed ^= seed << 13;
             seed ^= seed >> 7;
             seed ^= seed << 17;
             seed
-        };
+        }
+    }
+
+    /// On 300 random boxes of `dims` (random face prices when `weighted`), the cut costs
+    /// no more than the best of every labelling of the unknown cells.
+    fn check_minimal_on_random_boxes(seed: u64, dims: [usize; 3], weighted: bool) {
+        let mut next = xorshift(seed);
+        let n = dims[0] * dims[1] * dims[2];
         for _ in 0..300 {
-            let dims = [3, 2, 3];
-            let n = 18;
             let known: Vec<Known> = (0..n)
                 .map(|_| match next() % 7 {
                     0 | 1 => Known::Empty,
@@ -980,9 +976,21 @@ mod tests {
                     _ => Known::Unknown,
                 })
                 .collect();
-            let w: Vec<u8> = (0..n).map(|_| (next() % 45) as u8).collect();
+            let w: Vec<u8> = (0..n)
+                .map(|_| {
+                    if weighted {
+                        (next() % 45) as u8
+                    } else {
+                        UNIT_FACE_COST
+                    }
+                })
+                .collect();
             let unknown: Vec<usize> = (0..n).filter(|&i| known[i] == Known::Unknown).collect();
-            let got = close_unknown_weighted(dims, &known, &w);
+            let got = if weighted {
+                close_unknown_weighted(dims, &known, &w)
+            } else {
+                close_unknown(dims, &known)
+            };
             let best = (0..1u32 << unknown.len())
                 .map(|mask| {
                     let mut inside: Vec<bool> = known.iter().map(|k| *k == Known::Solid).collect();
@@ -999,6 +1007,18 @@ mod tests {
                 "{known:?} {w:?}"
             );
         }
+    }
+
+    /// Tiny boxes with random face prices: the weighted cut is minimal.
+    #[test]
+    fn the_weighted_cut_is_minimal_on_small_random_boxes() {
+        check_minimal_on_random_boxes(0x9e37_79b9_7f4a_7c15, [3, 2, 3], true);
+    }
+
+    /// Tiny boxes: the cut is minimal.
+    #[test]
+    fn the_cut_is_minimal_on_small_random_boxes() {
+        check_minimal_on_random_boxes(0x2545_f491_4f6c_dd1d, [3, 3, 2], false);
     }
 
     /// A wide well open above, far from every observation at its centre: with unit prices
@@ -1065,42 +1085,5 @@ mod tests {
         assert_eq!(known[idx(dims, 3, 3, 3)], Known::Unknown);
         let inside = close_unknown(dims, &known);
         assert!(inside[idx(dims, 3, 2, 3)]);
-    }
-
-    /// Tiny boxes: the cut is minimal (checked against every labelling of the unknown cells).
-    #[test]
-    fn the_cut_is_minimal_on_small_random_boxes() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
-        for _ in 0..300 {
-            let dims = [3, 3, 2];
-            let n = 18;
-            let known: Vec<Known> = (0..n)
-                .map(|_| match next() % 7 {
-                    0 | 1 => Known::Empty,
-                    2 | 3 => Known::Solid,
-                    4 => Known::Excluded,
-                    _ => Known::Unknown,
-                })
-                .collect();
-            let unknown: Vec<usize> = (0..n).filter(|&i| known[i] == Known::Unknown).collect();
-            let got = close_unknown(dims, &known);
-            let best = (0..1u32 << unknown.len())
-                .map(|mask| {
-                    let mut inside: Vec<bool> = known.iter().map(|k| *k == Known::Solid).collect();
-                    for (b, &i) in unknown.iter().enumerate() {
-                        inside[i] = mask >> b & 1 == 1;
-                    }
-                    cut_cost(dims, &known, &inside)
-                })
-                .min()
-                .unwrap_or(0);
-            assert_eq!(cut_cost(dims, &known, &got), best, "{known:?}");
-        }
     }
 }
