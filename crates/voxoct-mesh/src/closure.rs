@@ -904,7 +904,7 @@ mod tests {
                 3 + (next() % 4) as usize,
             ];
             let n = dims[0] * dims[1] * dims[2];
-            let marked: Vec<bool> = (0..n).map(|_| next() % 13 == 0).collect();
+            let marked: Vec<bool> = (0..n).map(|_| next().is_multiple_of(13)).collect();
             let got = chamfer_distance(dims, &marked);
             // Bellman–Ford on the 26-neighbour grid.
             let mut want: Vec<u16> = marked
