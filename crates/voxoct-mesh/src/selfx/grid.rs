@@ -317,8 +317,8 @@ impl Index {
                     }
                 }
             }
-            let block = &bx[base..end];
-            for (x, (bxx, &fx)) in bx[..end].iter().zip(&fl[..end]).enumerate() {
+            let (block, block_cv) = (&bx[base..end], &cv[base..end]);
+            for (x, ((bxx, &fx), &cvx)) in bx[..end].iter().zip(&fl[..end]).zip(cv).enumerate() {
                 // Partners in this block that come after x.
                 let mut m = has[usize::from(7 & !fx)];
                 if x >= base {
@@ -327,10 +327,8 @@ impl Index {
                 while m != 0 {
                     let y = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    if let Some(by) = block.get(y)
-                        && overlap(bxx, by)
-                        && !shares_certified(cv[x], cv[base + y])
-                    {
+                    // Both conditions evaluated without branching: few pairs pass.
+                    if overlap(bxx, &block[y]) & !shares_certified(cvx, block_cv[y]) {
                         test(id[x], id[base + y], out);
                     }
                 }
