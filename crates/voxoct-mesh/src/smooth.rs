@@ -2,34 +2,57 @@
 
 use voxoct_core::glam::{Vec3, Vec3A};
 
-use crate::fans::VertexFans;
 use crate::mesh::Mesh;
 use crate::options::Taubin;
 use crate::par;
 use crate::selfx;
 
-/// One Laplacian step. A vertex's neighbours are the first vertices after it of its
-/// corners (`fans`): in a closed oriented mesh every undirected edge appears once as
-/// a -> b and once as b -> a, so that lists every neighbour exactly once.
-fn step(src: &[Vec3A], dst: &mut [Vec3A], fans: &VertexFans, f: f32) {
+/// Vertex neighbours (each undirected mesh edge once per end), CSR.
+fn neighbours(mesh: &Mesh) -> (Vec<u32>, Vec<u32>) {
+    let n = mesh.vertices.len();
+    // In a closed oriented mesh every undirected edge appears once as a -> b with a < b
+    // and once with a > b; take each directed edge as a neighbour of its start: that lists
+    // every neighbour exactly once.
+    let mut start = vec![0u32; n + 1];
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            start[t[k] as usize + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut adj = vec![0u32; start[n] as usize];
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let a = t[k] as usize;
+            adj[fill[a] as usize] = t[(k + 1) % 3];
+            fill[a] += 1;
+        }
+    }
+    (start, adj)
+}
+
+fn step(src: &[Vec3A], dst: &mut [Vec3A], start: &[u32], adj: &[u32], f: f32) {
     par::fill(dst, |v| {
-        let nb = fans.corners(v as u32);
+        let nb = &adj[start[v] as usize..start[v + 1] as usize];
         let p = src[v];
         if nb.is_empty() {
             return p;
         }
-        let mean = nb.iter().map(|j| src[j[0] as usize]).sum::<Vec3A>() / nb.len() as f32;
+        let mean = nb.iter().map(|&j| src[j as usize]).sum::<Vec3A>() / nb.len() as f32;
         p + f * (mean - p)
     });
 }
 
-fn run(mesh: &Mesh, fans: &VertexFans, opts: &Taubin, iterations: u32) -> Vec<Vec3> {
+fn run(mesh: &Mesh, start: &[u32], adj: &[u32], opts: &Taubin, iterations: u32) -> Vec<Vec3> {
     // SIMD lanes; the arithmetic is per lane, so the result is that of `Vec3` bit for bit.
     let mut cur: Vec<Vec3A> = mesh.vertices.iter().map(|&p| p.into()).collect();
     let mut tmp = cur.clone();
     for _ in 0..iterations {
-        step(&cur, &mut tmp, fans, opts.lambda);
-        step(&tmp, &mut cur, fans, opts.mu);
+        step(&cur, &mut tmp, start, adj, opts.lambda);
+        step(&tmp, &mut cur, start, adj, opts.mu);
     }
     drop(tmp);
     cur.into_iter().map(Vec3::from).collect()
@@ -45,12 +68,11 @@ pub(crate) fn taubin(mesh: &mut Mesh, opts: &Taubin) -> bool {
     if mesh.vertices.is_empty() || opts.iterations == 0 {
         return false;
     }
-    // One fan table for smoothing (the corners' vertices) and the untangling's search.
-    let mut fans = selfx::fans_of(mesh.vertices.len(), &mesh.triangles, true);
-    let smoothed = run(mesh, &fans, opts, opts.iterations);
-    fans.pairs = Vec::new();
+    let (start, adj) = neighbours(mesh);
+    let smoothed = run(mesh, &start, &adj, opts, opts.iterations);
+    drop((start, adj));
     let safe = std::mem::replace(&mut mesh.vertices, smoothed);
-    if !selfx::untangle(mesh, &safe, fans) {
+    if !selfx::untangle(mesh, &safe) {
         mesh.vertices = safe;
         return false;
     }

@@ -29,7 +29,7 @@
 //! reversing every orientation alike), so they are exact too.
 //!
 //! # Speed
-//! - Candidate pairs come from a uniform grid (cell edge 1.5 mean triangle extents): each
+//! - Candidate pairs come from a uniform grid (cell edge 2.5 mean triangle extents): each
 //!   triangle is entered in every cell its bounding box meets, flagged with the axes along
 //!   which that cell is its first; the cells are hashed by their Morton code into buckets
 //!   (nearby cells, nearby buckets) and counting-sorted. Two overlapping boxes have exactly
@@ -191,12 +191,6 @@ fn certified(
     count == 1
 }
 
-/// The fans of the `nv` vertices over the triangles with valid indices, with the corners'
-/// vertex pairs when `corners` (what [`Checker`] needs, and smoothing's neighbours).
-pub(crate) fn fans_of(nv: usize, triangles: &[[u32; 3]], corners: bool) -> VertexFans {
-    VertexFans::new(nv, triangles, |t| valid_indices(nv, t), corners)
-}
-
 /// Whether the indices are in range and distinct.
 #[inline]
 fn valid_indices(nv: usize, t: [u32; 3]) -> bool {
@@ -225,25 +219,9 @@ impl<'a> Checker<'a> {
     /// Prepares the search over the triangles' current boxes.
     pub(crate) fn new(vertices: &[Vec3], triangles: &'a [[u32; 3]], f32_degenerate: bool) -> Self {
         let nv = vertices.len();
-        Self::with_fans(
-            vertices,
-            triangles,
-            f32_degenerate,
-            fans_of(nv, triangles, false),
-        )
-    }
-
-    /// As [`Checker::new`], with the fans over the triangles with valid indices
-    /// ([`fans_of`]) already built.
-    pub(crate) fn with_fans(
-        vertices: &[Vec3],
-        triangles: &'a [[u32; 3]],
-        f32_degenerate: bool,
-        fans: VertexFans,
-    ) -> Self {
-        let nv = vertices.len();
         let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
         let boxes = crate::par::map(triangles, |t| tri_box(vertices, *t));
+        let fans = VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false);
         let mut cert = Vec::new();
         crate::par::map_into(&mut cert, nv, |v| {
             certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
@@ -367,15 +345,14 @@ fn fact(vertices: &[Vec3], t: [u32; 3], f32_degenerate: bool) -> (u8, u8) {
 /// Every round moves a vertex, and a pair of triangles whose vertices are all at `safe` is
 /// proper, so this ends. Returns `true` when no triangle is left flagged (the mesh is
 /// proven free of self-intersections), `false` when flagged triangles are left with every
-/// vertex at `safe` (`safe` was not clean). `fans`: [`fans_of`] the mesh (its corner pairs
-/// are not used).
-pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3], fans: VertexFans) -> bool {
+/// vertex at `safe` (`safe` was not clean).
+pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> bool {
     let Mesh {
         vertices,
         triangles,
     } = mesh;
     let target = vertices.clone();
-    let mut checker = Checker::with_fans(vertices, triangles, true, fans);
+    let mut checker = Checker::new(vertices, triangles, true);
     let mut flagged = checker.check_all(vertices);
     if flagged.is_empty() {
         return true;
@@ -417,10 +394,7 @@ const UNTANGLE_STEPS: u8 = 4;
 /// a vertex whose fan is [`certified`].
 #[inline]
 fn shares_certified(a: [u32; 3], b: [u32; 3]) -> bool {
-    // Without branches (`&`, `|` on booleans): the loop of the pair search runs this on
-    // millions of pairs, most sharing a vertex, in no predictable pattern.
-    let hit = |v: u32| (v != u32::MAX) & ((v == b[0]) | (v == b[1]) | (v == b[2]));
-    hit(a[0]) | hit(a[1]) | hit(a[2])
+    a.iter().any(|&v| v != u32::MAX && b.contains(&v))
 }
 
 #[cfg(test)]
