@@ -26,7 +26,9 @@
 //! range keeps every intermediate product far from `f64` overflow and underflow, so every
 //! sign is exact. Coplanar configurations are decided in the projection that drops the axis
 //! of a non-zero normal component, which maps the common plane bijectively (preserving or
-//! reversing every orientation alike), so they are exact too.
+//! reversing every orientation alike), so they are exact too. The sides of a triangle's
+//! plane that three points lie on are first decided from one normal per triangle with the
+//! same kind of error bound (`exact::sides`), the exact predicate deciding what it cannot.
 //!
 //! # Speed
 //! - Candidate pairs come from a uniform grid (cell edge 2.5 mean triangle extents): each
@@ -40,10 +42,13 @@
 //!   orientation, the projections winding once around the vertex). Then any two of its
 //!   triangles meet in exactly their shared vertex or edge. On a smooth scan nearly every
 //!   vertex is certified, leaving the exact tests to the pairs that share no vertex.
-//! - With the `parallel` feature the classification, the certificates and the buckets are
-//!   processed on every core; the result is the same set.
+//! - With the `parallel` feature the classification, the certificates, the counting sort
+//!   and the buckets are processed on every core; the result is the same set.
 //!
-//! [`untangle`] reuses the search state to re-check only the pairs around moved vertices.
+//! [`untangle`] reuses the search state to re-check only the pairs around moved vertices:
+//! the grid is built once over the smoothed boxes; the pairs of two moved triangles come
+//! from a small grid over the moved ones, rebuilt each round, and those of a moved and an
+//! unmoved one from the first grid, visited over the moved one's current box.
 
 use voxoct_core::glam::{Vec3, Vec3A};
 
