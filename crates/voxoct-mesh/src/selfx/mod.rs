@@ -196,6 +196,18 @@ fn certified(
     count == 1
 }
 
+/// The vertices of triangle `t` whose fans are certified by `cert` (others `u32::MAX`).
+#[inline]
+fn certified_of(cert: &[bool], t: [u32; 3]) -> [u32; 3] {
+    t.map(|v| {
+        if cert.get(v as usize).copied().unwrap_or(false) {
+            v
+        } else {
+            u32::MAX
+        }
+    })
+}
+
 /// Whether the indices are in range and distinct.
 #[inline]
 fn valid_indices(nv: usize, t: [u32; 3]) -> bool {
@@ -212,6 +224,8 @@ pub(crate) struct Checker<'a> {
     boxes: Vec<[Vec3A; 2]>,
     fans: VertexFans,
     cert: Vec<bool>,
+    /// Per triangle, its vertices whose fans are certified (others `u32::MAX`).
+    cv: Vec<[u32; 3]>,
     /// The grid over the boxes the triangles had when the search was prepared.
     index: Index,
     /// The triangles moved since then (their boxes in `index` are stale), as flags and
@@ -231,6 +245,7 @@ impl<'a> Checker<'a> {
         crate::par::map_into(&mut cert, nv, |v| {
             certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
         });
+        let cv = crate::par::map(triangles, |t| certified_of(&cert, *t));
         let index = Index::build(&boxes, None, |t| facts[t].0 != NO_AXIS);
         Self {
             triangles,
@@ -239,6 +254,7 @@ impl<'a> Checker<'a> {
             boxes,
             fans,
             cert,
+            cv,
             index,
             touched: Vec::new(),
             touched_list: Vec::new(),
@@ -261,13 +277,7 @@ impl<'a> Checker<'a> {
     /// The vertices of triangle `t` whose fans are certified (others `u32::MAX`).
     #[inline]
     fn certified_vertices(&self, t: u32) -> [u32; 3] {
-        self.triangles[t as usize].map(|v| {
-            if self.cert.get(v as usize).copied().unwrap_or(false) {
-                v
-            } else {
-                u32::MAX
-            }
-        })
+        self.cv[t as usize]
     }
 
     /// After `moved` vertices changed position: updates what depends on them and returns
@@ -310,6 +320,11 @@ impl<'a> Checker<'a> {
         for &v in &verts {
             let ok = certified(v, self.fans.fan(v), self.triangles, vertices, &self.facts);
             self.cert[v as usize] = ok;
+        }
+        for &v in &verts {
+            for &t in self.fans.fan(v) {
+                self.cv[t as usize] = certified_of(&self.cert, self.triangles[t as usize]);
+            }
         }
         let side_boxes: Vec<[Vec3A; 2]> = self
             .touched_list
