@@ -4,6 +4,18 @@
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 
+/// The number of threads that the parallel helpers use (1 without the feature).
+pub(crate) fn threads() -> usize {
+    #[cfg(feature = "parallel")]
+    {
+        rayon::current_num_threads()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        1
+    }
+}
+
 /// Index of the first item for which `f` holds.
 pub(crate) fn position_first<T: Sync>(items: &[T], f: impl Fn(&T) -> bool + Sync) -> Option<usize> {
     #[cfg(feature = "parallel")]

@@ -115,10 +115,42 @@ pub(super) fn seg_tri(p: &P, q: &P, sp: i8, sq: i8, t: &[P; 3], k: usize) -> boo
     !((s1 > 0 || s2 > 0 || s3 > 0) && (s1 < 0 || s2 < 0 || s3 < 0))
 }
 
-/// Orientations of the points `x` against the plane of `t`.
+/// Orientations of the points `x` against the plane of `t`: [`orient3d`] of each, with the
+/// plane's normal computed once. Each sign comes from `-(n · (x - t0))`, `n` the normal
+/// `(t1 - t0) × (t2 - t0)`, when its magnitude exceeds the error bound of that evaluation,
+/// else from the exact predicate.
+///
+/// The bound is Shewchuk's first one for `orient3d` (`(7 + 56ε)ε` times the permanent,
+/// ε = 2⁻⁵³), which holds for any evaluation of the determinant as a sum of three terms,
+/// each a difference coordinate times a 2×2 minor of differences, with every operation
+/// rounded once; here 8ε. `orient3d(a, b, c, x)` is `det[a - x; b - x; c - x]`
+/// `= (a - x) · ((b - a) × (c - a))`, hence the minus. Coordinates from `f32` keep every
+/// intermediate in the normal range of `f64`, where the bound holds.
 #[inline]
 pub(super) fn sides(t: &[P; 3], x: &[P; 3]) -> [i8; 3] {
-    x.each_ref().map(|x| orient3d(&t[0], &t[1], &t[2], x))
+    const BOUND: f64 = 8.0 * (f64::EPSILON / 2.0);
+    let d = |p: &P, q: &P| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+    let (u, w) = (d(&t[1], &t[0]), d(&t[2], &t[0]));
+    let n = [
+        u[1] * w[2] - u[2] * w[1],
+        u[2] * w[0] - u[0] * w[2],
+        u[0] * w[1] - u[1] * w[0],
+    ];
+    let na = [
+        (u[1] * w[2]).abs() + (u[2] * w[1]).abs(),
+        (u[2] * w[0]).abs() + (u[0] * w[2]).abs(),
+        (u[0] * w[1]).abs() + (u[1] * w[0]).abs(),
+    ];
+    x.each_ref().map(|x| {
+        let e = d(x, &t[0]);
+        let det = n[0] * e[0] + n[1] * e[1] + n[2] * e[2];
+        let perm = na[0] * e[0].abs() + na[1] * e[1].abs() + na[2] * e[2].abs();
+        if det.abs() > BOUND * perm {
+            -sign(det)
+        } else {
+            orient3d(&t[0], &t[1], &t[2], x)
+        }
+    })
 }
 
 /// Whether all three orientations are strictly on one side.
@@ -252,4 +284,41 @@ pub(super) fn classify(vertices: &[Vec3], t: [u32; 3]) -> (u8, u8) {
         .max_by(|&x, &y| nrm[x].total_cmp(&nrm[y]))
         .unwrap_or(0);
     (k as u8, signs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A point from `f32`s: small lattice coordinates (coplanar and collinear cases are
+    /// common) at a scale, or arbitrary values.
+    fn point() -> impl Strategy<Value = P> {
+        prop_oneof![
+            (prop::array::uniform3(-4i32..=4), -30i32..30)
+                .prop_map(|(c, e)| c.map(|x| { f64::from(x as f32 * 2f32.powi(e)) })),
+            prop::array::uniform3(-1.0f32..1.0).prop_map(|c| c.map(f64::from)),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        /// The filtered signs of `sides` are the exact predicate's, coplanar points included.
+        #[test]
+        fn sides_agree_with_the_exact_predicate(
+            t in prop::array::uniform3(point()),
+            x in prop::array::uniform3(point()),
+            mix in prop::array::uniform3((-2i32..=2, -2i32..=2)),
+        ) {
+            // Half the points exactly in the plane of t where the lattice allows it.
+            let x: [P; 3] = std::array::from_fn(|i| {
+                let (a, b) = (f64::from(mix[i].0), f64::from(mix[i].1));
+                let p: P = std::array::from_fn(|k| t[0][k] + a * (t[1][k] - t[0][k]) + b * (t[2][k] - t[0][k]));
+                if i % 2 == 0 && p.iter().all(|&c| f64::from(c as f32) == c) { p } else { x[i] }
+            });
+            let want = x.each_ref().map(|x| orient3d(&t[0], &t[1], &t[2], x));
+            prop_assert_eq!(sides(&t, &x), want);
+        }
+    }
 }

@@ -1,6 +1,8 @@
 //! The candidate-pair grid of the search: triangles' cells hashed by Morton code into
 //! buckets, each pair found once.
 
+use std::sync::atomic::{AtomicU8, AtomicU32, Ordering};
+
 use voxoct_core::glam::{Vec3, Vec3A};
 
 use super::*;
@@ -27,8 +29,9 @@ pub(super) fn morton(c: [u32; 3]) -> u64 {
 
 /// Grid cells per axis at most (Morton codes hold 21 bits per axis).
 pub(super) const MAX_CELLS: f32 = (1 << 20) as f32;
-/// Cell edge in mean triangle extents (fewest candidate pairs on scanned meshes).
-pub(super) const CELL_FACTOR: f64 = 1.5;
+/// Cell edge in mean triangle extents: the least time on the bunny scan's mesh and the
+/// bench's sphere (more candidate pairs than with 1.5, fewer entries to sort and gather).
+pub(super) const CELL_FACTOR: f64 = 2.5;
 /// Buckets per parallel task of the pair search (the result does not depend on it).
 pub(super) const BUCKETS_PER_TASK: usize = 4096;
 
@@ -49,9 +52,14 @@ pub(super) struct Index {
 }
 
 impl Index {
-    /// Indexes the `boxes` of the triangles that `include` accepts.
+    /// Indexes the `boxes` that `include` accepts, box `i` as triangle `ids[i]` (without
+    /// `ids`, as triangle `i`).
     #[inline(never)]
-    pub(super) fn build(boxes: &[[Vec3A; 2]], include: impl Fn(usize) -> bool + Sync) -> Self {
+    pub(super) fn build(
+        boxes: &[[Vec3A; 2]],
+        ids: Option<&[u32]>,
+        include: impl Fn(usize) -> bool + Sync,
+    ) -> Self {
         let mut lo = Vec3A::splat(f32::INFINITY);
         let mut hi = Vec3A::splat(f32::NEG_INFINITY);
         let mut sum = 0.0f64;
@@ -101,23 +109,46 @@ impl Index {
         let buckets = (total.next_power_of_two() / 2).max(1);
         index.mask = buckets as u64 - 1;
         let mask = index.mask;
+        // A counting sort by bucket, in `parts` consecutive runs of triangles counted and
+        // placed in parallel: run `c`'s entries of a bucket go after those of runs before
+        // it, so the layout is that of one run, whatever `parts` is.
+        let parts = crate::par::threads().clamp(1, ranges.len().div_ceil(1 << 14).max(1));
+        let run = ranges.len().div_ceil(parts);
+        let runs: Vec<std::ops::Range<usize>> = (0..parts)
+            .map(|c| c * run..((c + 1) * run).min(ranges.len()))
+            .collect();
+        let mut cursors: Vec<Vec<u32>> = Vec::new();
+        crate::par::map_into(&mut cursors, parts, |c| {
+            let mut count = vec![0u32; buckets];
+            for_each_cell(&ranges, runs[c].clone(), &include, |_, m, _| {
+                count[(m & mask) as usize] += 1;
+            });
+            count
+        });
         let mut start = vec![0u32; buckets + 1];
-        for_each_cell(&ranges, &include, |_, m, _| {
-            start[(m & mask) as usize + 1] += 1;
-        });
-        for i in 0..buckets {
-            start[i + 1] += start[i];
+        let mut next = 0u32;
+        for b in 0..buckets {
+            start[b] = next;
+            for cursor in &mut cursors {
+                let n = cursor[b];
+                cursor[b] = next;
+                next += n;
+            }
         }
-        let mut fill = start.clone();
-        let mut items = vec![0u32; total];
-        let mut flags = vec![0u8; total];
-        for_each_cell(&ranges, &include, |t, m, f| {
-            let b = (m & mask) as usize;
-            let k = fill[b] as usize;
-            items[k] = t;
-            flags[k] = f;
-            fill[b] += 1;
+        start[buckets] = next;
+        let items: Vec<AtomicU32> = (0..total).map(|_| AtomicU32::new(0)).collect();
+        let flags: Vec<AtomicU8> = (0..total).map(|_| AtomicU8::new(0)).collect();
+        crate::par::for_each_zip(cursors, runs, |_, mut cursor, r| {
+            for_each_cell(&ranges, r, &include, |t, m, f| {
+                let k = &mut cursor[(m & mask) as usize];
+                let id = ids.map_or(t, |ids| ids[t as usize]);
+                items[*k as usize].store(id, Ordering::Relaxed);
+                flags[*k as usize].store(f, Ordering::Relaxed);
+                *k += 1;
+            });
         });
+        let items: Vec<u32> = items.into_iter().map(AtomicU32::into_inner).collect();
+        let flags: Vec<u8> = flags.into_iter().map(AtomicU8::into_inner).collect();
         index.start = start;
         index.items = items;
         index.flags = flags;
@@ -135,60 +166,82 @@ impl Index {
         ]
     }
 
-    /// Both triangles of every improper pair among the proper triangles whose current boxes
-    /// overlap; with `dirty = (triangles, flags)`, only the pairs with a dirty member (the
-    /// indexed boxes must contain the current ones).
+    /// Both triangles of every improper pair among the indexed proper triangles whose
+    /// current boxes overlap (the indexed boxes must be the current ones); with `dirty`,
+    /// only the pairs with a dirty member.
     pub(super) fn pairs(
         &self,
         ck: &Checker<'_>,
         vertices: &[Vec3],
-        dirty: Option<(&[u32], &[bool])>,
+        dirty: Option<&[bool]>,
     ) -> Vec<u32> {
-        let visit: Vec<u32> = match dirty {
-            None => Vec::new(),
-            Some((tris, _)) => {
-                // The buckets of the dirty triangles' indexed ranges: the cell where a pair
-                // is tested lies in both triangles' indexed ranges.
-                let indexed = ck.index_boxes.as_ref().unwrap_or(&ck.boxes);
-                let mut v = Vec::new();
-                for &t in tris {
-                    let b = indexed[t as usize];
-                    let (lo, hi) = (self.cell(b[0]), self.cell(b[1]));
-                    for z in lo[2]..=hi[2] {
-                        for y in lo[1]..=hi[1] {
-                            for x in lo[0]..=hi[0] {
-                                v.push((morton([x, y, z]) & self.mask) as u32);
-                            }
-                        }
-                    }
-                }
-                v.sort_unstable();
-                v.dedup();
-                v
-            }
-        };
-        let count = if dirty.is_some() {
-            visit.len()
-        } else {
-            self.start.len() - 1
-        };
+        let count = self.start.len() - 1;
         let one = |task: usize, out: &mut Vec<u32>| {
             let mut scratch = Scratch::default();
             let range = task * BUCKETS_PER_TASK..((task + 1) * BUCKETS_PER_TASK).min(count);
-            let d = dirty.map(|d| d.1);
-            if dirty.is_some() {
-                for &b in &visit[range] {
-                    self.bucket_pairs(ck, vertices, d, b as usize, &mut scratch, out);
-                }
-            } else {
-                for b in range {
-                    self.bucket_pairs(ck, vertices, d, b, &mut scratch, out);
-                }
+            for b in range {
+                self.bucket_pairs(ck, vertices, dirty, b, &mut scratch, out);
             }
         };
         let mut out = Vec::new();
         crate::par::extend_in_order(&mut out, count.div_ceil(BUCKETS_PER_TASK), 1, one);
         out
+    }
+
+    /// Appends both triangles of every improper pair of one of `tris` and an indexed
+    /// proper triangle that is not `touched` (whose indexed box is its current one), their
+    /// current boxes overlapping. Each pair is tested once: in the cell of the minimum
+    /// corner of the boxes' overlap, which lies in both triangles' ranges of cells.
+    pub(super) fn pairs_with_untouched(
+        &self,
+        ck: &Checker<'_>,
+        vertices: &[Vec3],
+        tris: &[u32],
+        touched: &[bool],
+        out: &mut Vec<u32>,
+    ) {
+        if self.items.is_empty() {
+            return;
+        }
+        for &t in tris {
+            let kt = ck.facts[t as usize].0;
+            if kt == NO_AXIS {
+                continue;
+            }
+            let bt = ck.boxes[t as usize];
+            let cvt = ck.certified_vertices(t);
+            let (lo, hi) = (self.cell(bt[0]), self.cell(bt[1]));
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
+                        let b = (morton([x, y, z]) & self.mask) as usize;
+                        let (s, e) = (self.start[b] as usize, self.start[b + 1] as usize);
+                        for &u in &self.items[s..e] {
+                            let ku = ck.facts[u as usize].0;
+                            if touched[u as usize] || ku == NO_AXIS {
+                                continue;
+                            }
+                            let bu = ck.boxes[u as usize];
+                            if !(bt[0].cmple(bu[1]) & bu[0].cmple(bt[1])).all()
+                                || self.cell(bt[0].max(bu[0])) != [x, y, z]
+                                || shares_certified(cvt, ck.certified_vertices(u))
+                            {
+                                continue;
+                            }
+                            let tri = |i: u32, k: u8| Tri {
+                                idx: ck.triangles[i as usize],
+                                k: k as usize,
+                                v: vertices,
+                            };
+                            if improper(tri(t, kt), tri(u, ku)) {
+                                out.push(t);
+                                out.push(u);
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// The improper pairs owned by the cells of bucket `b` (see [`Self::pairs`]).
@@ -246,13 +299,7 @@ impl Index {
                 id[n] = t;
                 fl[n] = f;
                 bx[n] = ck.boxes[t as usize];
-                cv[n] = ck.triangles[t as usize].map(|v| {
-                    if ck.cert.get(v as usize).copied().unwrap_or(false) {
-                        v
-                    } else {
-                        u32::MAX
-                    }
-                });
+                cv[n] = ck.certified_vertices(t);
                 n += 1;
             }
         }
@@ -305,15 +352,16 @@ pub(super) struct Scratch {
     pub(super) cv: Vec<[u32; 3]>,
 }
 
-/// Morton codes of the cells of every included triangle's range, with the triangle and the
+/// Morton codes of the cells of every included triangle's range (of the triangles `run`), with the triangle and the
 /// cell's flags (bit `k`: the cell is the range's first along axis `k`).
 #[inline(never)]
 pub(super) fn for_each_cell(
     ranges: &[[[u32; 3]; 2]],
+    run: std::ops::Range<usize>,
     include: impl Fn(usize) -> bool,
     mut f: impl FnMut(u32, u64, u8),
 ) {
-    for (t, r) in ranges.iter().enumerate() {
+    for (t, r) in ranges.iter().enumerate().take(run.end).skip(run.start) {
         if !include(t) {
             continue;
         }

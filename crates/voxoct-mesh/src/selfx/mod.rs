@@ -26,10 +26,12 @@
 //! range keeps every intermediate product far from `f64` overflow and underflow, so every
 //! sign is exact. Coplanar configurations are decided in the projection that drops the axis
 //! of a non-zero normal component, which maps the common plane bijectively (preserving or
-//! reversing every orientation alike), so they are exact too.
+//! reversing every orientation alike), so they are exact too. The sides of a triangle's
+//! plane that three points lie on are first decided from one normal per triangle with the
+//! same kind of error bound (`exact::sides`), the exact predicate deciding what it cannot.
 //!
 //! # Speed
-//! - Candidate pairs come from a uniform grid (cell edge 1.5 mean triangle extents): each
+//! - Candidate pairs come from a uniform grid (cell edge 2.5 mean triangle extents): each
 //!   triangle is entered in every cell its bounding box meets, flagged with the axes along
 //!   which that cell is its first; the cells are hashed by their Morton code into buckets
 //!   (nearby cells, nearby buckets) and counting-sorted. Two overlapping boxes have exactly
@@ -40,10 +42,13 @@
 //!   orientation, the projections winding once around the vertex). Then any two of its
 //!   triangles meet in exactly their shared vertex or edge. On a smooth scan nearly every
 //!   vertex is certified, leaving the exact tests to the pairs that share no vertex.
-//! - With the `parallel` feature the classification, the certificates and the buckets are
-//!   processed on every core; the result is the same set.
+//! - With the `parallel` feature the classification, the certificates, the counting sort
+//!   and the buckets are processed on every core; the result is the same set.
 //!
-//! [`untangle`] reuses the search state to re-check only the pairs around moved vertices.
+//! [`untangle`] reuses the search state to re-check only the pairs around moved vertices:
+//! the grid is built once over the smoothed boxes; the pairs of two moved triangles come
+//! from a small grid over the moved ones, rebuilt each round, and those of a moved and an
+//! unmoved one from the first grid, visited over the moved one's current box.
 
 use voxoct_core::glam::{Vec3, Vec3A};
 
@@ -105,7 +110,7 @@ pub fn triangles_intersect(mesh: &Mesh, i: usize, j: usize) -> bool {
 /// With the `parallel` feature the work is spread over every core, with the same result.
 #[must_use]
 pub fn self_intersecting_triangles(mesh: &Mesh) -> Vec<u32> {
-    let checker = Checker::new(&mesh.vertices, &mesh.triangles, None, false);
+    let checker = Checker::new(&mesh.vertices, &mesh.triangles, false);
     checker.check_all(&mesh.vertices)
 }
 
@@ -191,6 +196,18 @@ fn certified(
     count == 1
 }
 
+/// The vertices of triangle `t` whose fans are certified by `cert` (others `u32::MAX`).
+#[inline]
+fn certified_of(cert: &[bool], t: [u32; 3]) -> [u32; 3] {
+    t.map(|v| {
+        if cert.get(v as usize).copied().unwrap_or(false) {
+            v
+        } else {
+            u32::MAX
+        }
+    })
+}
+
 /// Whether the indices are in range and distinct.
 #[inline]
 fn valid_indices(nv: usize, t: [u32; 3]) -> bool {
@@ -207,20 +224,19 @@ pub(crate) struct Checker<'a> {
     boxes: Vec<[Vec3A; 2]>,
     fans: VertexFans,
     cert: Vec<bool>,
-    /// The boxes the index was built from, when not the current ones.
-    index_boxes: Option<Vec<[Vec3A; 2]>>,
+    /// Per triangle, its vertices whose fans are certified (others `u32::MAX`).
+    cv: Vec<[u32; 3]>,
+    /// The grid over the boxes the triangles had when the search was prepared.
     index: Index,
+    /// The triangles moved since then (their boxes in `index` are stale), as flags and
+    /// as a list in the order they were first moved.
+    touched: Vec<bool>,
+    touched_list: Vec<u32>,
 }
 
 impl<'a> Checker<'a> {
-    /// Prepares the search; `index_boxes` (per triangle, each containing every box the
-    /// triangle will have) default to the current boxes.
-    pub(crate) fn new(
-        vertices: &[Vec3],
-        triangles: &'a [[u32; 3]],
-        index_boxes: Option<Vec<[Vec3A; 2]>>,
-        f32_degenerate: bool,
-    ) -> Self {
+    /// Prepares the search over the triangles' current boxes.
+    pub(crate) fn new(vertices: &[Vec3], triangles: &'a [[u32; 3]], f32_degenerate: bool) -> Self {
         let nv = vertices.len();
         let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
         let boxes = crate::par::map(triangles, |t| tri_box(vertices, *t));
@@ -229,10 +245,8 @@ impl<'a> Checker<'a> {
         crate::par::map_into(&mut cert, nv, |v| {
             certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
         });
-        let index = match &index_boxes {
-            Some(b) => Index::build(b, |t| valid_indices(nv, triangles[t])),
-            None => Index::build(&boxes, |t| facts[t].0 != NO_AXIS),
-        };
+        let cv = crate::par::map(triangles, |t| certified_of(&cert, *t));
+        let index = Index::build(&boxes, None, |t| facts[t].0 != NO_AXIS);
         Self {
             triangles,
             f32_degenerate,
@@ -240,8 +254,10 @@ impl<'a> Checker<'a> {
             boxes,
             fans,
             cert,
-            index_boxes,
+            cv,
             index,
+            touched: Vec::new(),
+            touched_list: Vec::new(),
         }
     }
 
@@ -258,9 +274,20 @@ impl<'a> Checker<'a> {
         out.extend(ts.filter(|&t| self.facts[t].0 == NO_AXIS).map(|t| t as u32));
     }
 
+    /// The vertices of triangle `t` whose fans are certified (others `u32::MAX`).
+    #[inline]
+    fn certified_vertices(&self, t: u32) -> [u32; 3] {
+        self.cv[t as usize]
+    }
+
     /// After `moved` vertices changed position: updates what depends on them and returns
     /// the flagged triangles among the pairs that involve them (increasing order). With no
     /// flagged pair before the move except those around `moved`, that is every one.
+    ///
+    /// The pairs of two moved triangles (moved now or before) come from a small grid over
+    /// the moved ones' current boxes; those of a triangle moved now and one never moved,
+    /// from the prepared grid, visiting the cells of the moved one's current box (the
+    /// other's box there is current).
     pub(crate) fn recheck(
         &mut self,
         vertices: &[Vec3],
@@ -273,12 +300,19 @@ impl<'a> Checker<'a> {
         }
         tris.sort_unstable();
         tris.dedup();
+        if self.touched.is_empty() {
+            self.touched = vec![false; self.triangles.len()];
+        }
         let mut verts: Vec<u32> = Vec::new();
         for &t in &tris {
             let tri = self.triangles[t as usize];
             self.facts[t as usize] = fact(vertices, tri, self.f32_degenerate);
             self.boxes[t as usize] = tri_box(vertices, tri);
             dirty[t as usize] = true;
+            if !self.touched[t as usize] {
+                self.touched[t as usize] = true;
+                self.touched_list.push(t);
+            }
             verts.extend_from_slice(&tri);
         }
         verts.sort_unstable();
@@ -287,7 +321,22 @@ impl<'a> Checker<'a> {
             let ok = certified(v, self.fans.fan(v), self.triangles, vertices, &self.facts);
             self.cert[v as usize] = ok;
         }
-        let mut out = self.index.pairs(self, vertices, Some((&tris, dirty)));
+        for &v in &verts {
+            for &t in self.fans.fan(v) {
+                self.cv[t as usize] = certified_of(&self.cert, self.triangles[t as usize]);
+            }
+        }
+        let side_boxes: Vec<[Vec3A; 2]> = self
+            .touched_list
+            .iter()
+            .map(|&t| self.boxes[t as usize])
+            .collect();
+        let side = Index::build(&side_boxes, Some(&self.touched_list), |i| {
+            self.facts[self.touched_list[i] as usize].0 != NO_AXIS
+        });
+        let mut out = side.pairs(self, vertices, Some(dirty));
+        self.index
+            .pairs_with_untouched(self, vertices, &tris, &self.touched, &mut out);
         self.add_improper(&mut out, tris.iter().map(|&t| t as usize));
         for &t in &tris {
             dirty[t as usize] = false;
@@ -323,11 +372,7 @@ pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> bool {
         triangles,
     } = mesh;
     let target = vertices.clone();
-    let swept = crate::par::map(triangles, |t| {
-        let (a, b) = (tri_box(&target, *t), tri_box(safe, *t));
-        [a[0].min(b[0]), a[1].max(b[1])]
-    });
-    let mut checker = Checker::new(vertices, triangles, Some(swept), true);
+    let mut checker = Checker::new(vertices, triangles, true);
     let mut flagged = checker.check_all(vertices);
     if flagged.is_empty() {
         return true;
@@ -353,7 +398,7 @@ pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> bool {
             vertices[v as usize] = if *l == UNTANGLE_STEPS {
                 s
             } else {
-                // Clamped so that rounding cannot leave the indexed (swept) boxes.
+                // Clamped so that rounding cannot leave the segment between the two.
                 (s + (m - s) * 0.5f32.powi(i32::from(*l))).clamp(s.min(m), s.max(m))
             };
         }
@@ -370,4 +415,131 @@ const UNTANGLE_STEPS: u8 = 4;
 #[inline]
 fn shares_certified(a: [u32; 3], b: [u32; 3]) -> bool {
     a.iter().any(|&v| v != u32::MAX && b.contains(&v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Cell, GridSpec, MeshOptions, Placement, mesh_cells};
+    use proptest::prelude::*;
+    use voxoct_core::glam::UVec3;
+
+    /// What [`Checker::recheck`] must return after moving `moved`: both triangles of every
+    /// improper pair with a member around a moved vertex, and those of them that are not
+    /// proper triangles, by the one-pair reference. (A triangle with a repeated or bad index
+    /// is around no vertex: it is flagged whatever moves.)
+    fn reference_recheck(mesh: &Mesh, moved: &[u32]) -> Vec<u32> {
+        let nv = mesh.vertices.len();
+        let dirty: Vec<bool> = (0..mesh.triangles.len())
+            .map(|t| {
+                let tri = mesh.triangles[t];
+                valid_indices(nv, tri) && tri.iter().any(|v| moved.contains(v))
+            })
+            .collect();
+        let mut out = Vec::new();
+        for i in 0..mesh.triangles.len() {
+            for j in i..mesh.triangles.len() {
+                if (dirty[i] || dirty[j]) && triangles_intersect(mesh, i, j) {
+                    out.extend([i as u32, j as u32]);
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    /// Moves `rounds` of vertices of `mesh` (to anywhere, also outside the prepared grid)
+    /// and compares every re-check with the reference, then the full search with all pairs.
+    fn check_moves(mut mesh: Mesh, rounds: &[Vec<(usize, [f32; 3])>]) -> Result<(), TestCaseError> {
+        let triangles = mesh.triangles.clone();
+        let mut ck = Checker::new(&mesh.vertices, &triangles, false);
+        prop_assert_eq!(
+            ck.check_all(&mesh.vertices),
+            self_intersecting_triangles(&mesh)
+        );
+        let mut dirty = vec![false; triangles.len()];
+        for round in rounds {
+            let mut moved: Vec<u32> = Vec::new();
+            for &(v, p) in round {
+                let v = v % mesh.vertices.len();
+                mesh.vertices[v] = Vec3::from_array(p);
+                moved.push(v as u32);
+            }
+            moved.sort_unstable();
+            moved.dedup();
+            let got = ck.recheck(&mesh.vertices, &moved, &mut dirty);
+            prop_assert_eq!(got, reference_recheck(&mesh, &moved));
+            prop_assert!(dirty.iter().all(|d| !d));
+        }
+        let n = mesh.triangles.len();
+        let want = (0..n)
+            .filter(|&i| (0..n).any(|j| triangles_intersect(&mesh, i, j)))
+            .map(|i| i as u32)
+            .collect::<Vec<_>>();
+        prop_assert_eq!(self_intersecting_triangles(&mesh), want);
+        Ok(())
+    }
+
+    fn moves(spread: f32) -> impl Strategy<Value = Vec<Vec<(usize, [f32; 3])>>> {
+        prop::collection::vec(
+            prop::collection::vec(
+                (0usize..10_000, prop::array::uniform3(-spread..spread)),
+                1..6,
+            ),
+            1..5,
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Re-checks after moves agree with the reference, on triangle soups with shared
+        /// vertices.
+        #[test]
+        fn recheck_after_moves_matches_the_reference_on_soups(
+            verts in prop::collection::vec(prop::array::uniform3(-1.0f32..1.0), 4..40),
+            picks in prop::collection::vec((0usize..1000, 0usize..1000, 0usize..1000), 1..60),
+            rounds in moves(1.5),
+        ) {
+            let n = verts.len();
+            let mesh = Mesh {
+                vertices: verts.iter().map(|v| Vec3::from_array(*v)).collect(),
+                triangles: picks
+                    .iter()
+                    .map(|&(a, b, c)| [a % n, (a + 1 + b % 3) % n, (a + 2 + c % 4) % n].map(|x| x as u32))
+                    .collect(),
+            };
+            check_moves(mesh, &rounds)?;
+        }
+
+        /// Re-checks after moves agree with the reference on the mesher's closed meshes
+        /// (certified fans, moves of about a cell).
+        #[test]
+        fn recheck_after_moves_matches_the_reference_on_meshes(
+            cells in prop::collection::vec((0u32..6, 0u32..6, 0u32..6, -0.9f32..0.9), 1..24),
+            rounds in moves(0.004),
+        ) {
+            let grid = GridSpec { origin: Vec3::ZERO, cell: 0.001, resolution: 8 };
+            let cells: Vec<Cell> = cells
+                .iter()
+                .map(|&(x, y, z, s)| Cell { coord: UVec3::new(x, y, z), hits: 1, sdf_sum: s * 0.001 })
+                .collect();
+            let opts = MeshOptions { placement: Placement::SignedDistance, ..MeshOptions::thesis() };
+            let mesh = mesh_cells(&cells, &grid, &opts).unwrap();
+            // Moves relative to where the vertex is: small, so that pairs are near.
+            let rounds: Vec<Vec<(usize, [f32; 3])>> = rounds
+                .iter()
+                .map(|r| {
+                    r.iter()
+                        .map(|&(v, d)| {
+                            let p = mesh.vertices[v % mesh.vertices.len()];
+                            (v, (p + Vec3::from_array(d) * 0.25).to_array())
+                        })
+                        .collect()
+                })
+                .collect();
+            check_moves(mesh, &rounds)?;
+        }
+    }
 }
