@@ -187,7 +187,8 @@ pub enum MeshError {
         /// What the value must be.
         reason: &'static str,
     },
-    /// The box to flood-fill for solid mode is too large to hold densely.
+    /// The box to flood-fill for solid mode needs more tiles than the tiled fill allocates
+    /// (2^26 tiles of 16 384 cells: a box far beyond any scene at its leaf size).
     ///
     /// How to fix: mesh a coarser depth, or crop the cells.
     #[error("solid fill needs {cells} cells, more than the limit {limit}")]
