@@ -591,7 +591,15 @@ fn close_unseen_in_budget(
         d.x * d.y * d.z
     };
     if volume(lo, hi) <= budget {
-        return close_unseen(config, options, &grid, cells, filtered, angles);
+        return close_unseen(
+            config,
+            &grid,
+            cells,
+            (lo, hi),
+            floor,
+            (filtered, angles),
+            options.min_hits,
+        );
     }
     // The finest coarser grid whose box fits (its box holds the fine one's cells).
     let mut k = 1;
@@ -601,7 +609,19 @@ fn close_unseen_in_budget(
     let coarse_grid = tree.grid(depth - k);
     let coarse = tree.cells_at_depth(depth - k);
     let known = coarse.len();
-    let closed = close_unseen(config, options, &coarse_grid, coarse, filtered, angles);
+    let coarse_floor = closure_floor(options, &coarse_grid);
+    let Some(coarse_box) = closure_box(&coarse, &coarse_grid, coarse_floor) else {
+        return cells;
+    };
+    let closed = close_unseen(
+        config,
+        &coarse_grid,
+        coarse,
+        coarse_box,
+        coarse_floor,
+        (filtered, angles),
+        options.min_hits,
+    );
     // `close_cells` appends the cells it adds after the ones it was given; a coarse cell it
     // adds holds no marked leaf (else it would be known), so all its cells are added.
     let added = &closed[known..];
@@ -637,17 +657,18 @@ fn closure_floor(options: &MeshOptions, grid: &GridSpec) -> u32 {
     }
 }
 
-/// Closes what no frame saw by the cheapest surface between the space seen empty and the
-/// solid ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]): invented surface
+/// Closes what no frame saw in the box `lo..=hi` of `grid` (the cells' [`closure_box`] above
+/// `floor`) by the cheapest surface between the space seen empty and the solid ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]): invented surface
 /// costs its area, and one more unit of area for every carving margin (the uncertainty of
 /// an observed surface's position) it lies away from the nearest observation.
 fn close_unseen(
     config: &ScannerConfig,
-    options: &MeshOptions,
     grid: &GridSpec,
     cells: Vec<Cell>,
-    filtered: &[DepthFrame],
-    angles: &[f32],
+    (lo, hi): (UVec3, UVec3),
+    floor: u32,
+    (filtered, angles): (&[DepthFrame], &[f32]),
+    min_hits: u32,
 ) -> Vec<Cell> {
     let views: Vec<CarveView<'_>> = filtered
         .iter()
@@ -658,10 +679,6 @@ fn close_unseen(
             object_to_camera: config.rig.camera_to_object(angle).inverse(),
         })
         .collect();
-    let floor = closure_floor(options, grid);
-    let Some((lo, hi)) = closure_box(&cells, grid, floor) else {
-        return cells;
-    };
     // Two standard deviations of the sensor's depth noise at the distance of the box's
     // centre (the object on the turntable, or the middle of a scene), plus half a cell
     // diagonal.
@@ -681,7 +698,7 @@ fn close_unseen(
         grid,
         (lo, hi),
         floor,
-        options.min_hits,
+        min_hits,
         margin / grid.cell,
         |c| {
             let d = c - lo;

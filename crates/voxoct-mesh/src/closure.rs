@@ -118,7 +118,9 @@ pub fn close_cells(
     seal_behind_surfaces(dims, &mut known, &marked);
     let cost = face_costs(dims, &marked, prior_cells);
     let inside = close_coarse(dims, &known, &cost);
-    let added = |(i, k): (usize, &Known)| *k != Known::Excluded && inside[i] && !marked[i];
+    // Unknown cells the cut put inside, and those sealed behind a surface (`inside` is false
+    // for empty and excluded cells).
+    let added = |(i, _): (usize, &Known)| inside[i] && !marked[i];
     let mut cells = cells;
     cells.reserve_exact(known.iter().enumerate().filter(|&x| added(x)).count());
     let sdf = -grid.cell * CLOSED_HITS as f32;
@@ -224,19 +226,13 @@ fn chamfer_distance(dims: [usize; 3], marked: &[bool]) -> Vec<u16> {
     let mut best = vec![FAR; px];
     // Forward: neighbours at lower (z, y, x); backward: at higher.
     let mut pass = |d: &mut [u16], forward: bool| {
-        let zs: Vec<usize> = if forward {
-            (1..=nz).collect()
-        } else {
-            (1..=nz).rev().collect()
-        };
-        let ys: Vec<usize> = if forward {
-            (1..=ny).collect()
-        } else {
-            (1..=ny).rev().collect()
-        };
-        for &z in &zs {
+        // The i-th layer or row visited (1-based, inside the padding).
+        let nth = |i: usize, n: usize| if forward { i } else { n + 1 - i };
+        for iz in 1..=nz {
+            let z = nth(iz, nz);
             let zp = if forward { z - 1 } else { z + 1 };
-            for &y in &ys {
+            for iy in 1..=ny {
+                let y = nth(iy, ny);
                 let yp = if forward { y - 1 } else { y + 1 };
                 best.fill(FAR);
                 // The 9 neighbours in the previous slice and the 3 in the previous row.
