@@ -67,9 +67,33 @@ pub struct Params {
     pub check_agreement: bool,
     /// Simplify the mesh after dropping small pieces ([`voxoct_mesh::simplify`]: quadric edge
     /// collapse that keeps it closed, manifold and free of new self-intersections); `None`
-    /// keeps every triangle. The default is [`Simplify::for_leaf`] of the default `leaf_m`
-    /// (an absolute bound, 0.25 mm): set it anew when changing `leaf_m` or `lod`.
-    pub simplify: Option<Simplify>,
+    /// keeps every triangle.
+    pub simplify: Option<Simplification>,
+}
+
+/// How [`reconstruct`] simplifies the mesh ([`Params::simplify`]). The default bounds the
+/// error by [`Simplify::LEAF_FRACTION`] of the cell actually meshed (the leaf edge the
+/// octree chose, times `2^lod`), so it follows `leaf_m` and `lod`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Simplification {
+    /// Largest error of a collapse, metres (`--max-error`); `None`: a quarter of the meshed
+    /// cell ([`Simplify::for_leaf`]).
+    pub max_error_m: Option<f32>,
+    /// Stop at this many triangles (`--triangles`); the error bound holds either way.
+    pub target_triangles: Option<usize>,
+}
+
+impl Simplification {
+    /// The simplifier's options for cells of edge `cell` metres.
+    #[must_use]
+    pub fn for_cell(&self, cell: f32) -> Simplify {
+        Simplify {
+            max_error: self
+                .max_error_m
+                .unwrap_or(Simplify::for_leaf(cell).max_error),
+            target_triangles: self.target_triangles,
+        }
+    }
 }
 
 impl Default for Params {
@@ -77,10 +101,9 @@ impl Default for Params {
     /// meshing ([`MeshOptions::smooth`]), simplified within a quarter leaf
     /// ([`Simplify::for_leaf`]).
     fn default() -> Self {
-        let leaf_m = 0.001;
         Self {
             filter: FilterChain::default(),
-            leaf_m,
+            leaf_m: 0.001,
             root_m: 1.0,
             max_edge_sq: DEFAULT_MAX_EDGE_SQ,
             lod: 0,
@@ -88,7 +111,7 @@ impl Default for Params {
             carve: true,
             check_agreement: true,
             min_piece_fraction: 0.01,
-            simplify: Some(Simplify::for_leaf(leaf_m)),
+            simplify: Some(Simplification::default()),
         }
     }
 }
@@ -166,7 +189,7 @@ impl Params {
                 ),
             );
         }
-        if let Some(e) = self.simplify.as_ref().map(|s| s.max_error)
+        if let Some(e) = self.simplify.and_then(|s| s.max_error_m)
             && !(e.is_finite() && e >= 0.0)
         {
             return bad(
@@ -549,8 +572,8 @@ fn mesh_tree(
     // Removing whole pieces cannot make two triangles intersect; simplification refuses
     // every collapse that would (its own exact check).
     mesh.remove_pieces_below_fraction(params.min_piece_fraction);
-    if let Some(opts) = &params.simplify {
-        voxoct_mesh::simplify(&mut mesh, opts);
+    if let Some(s) = &params.simplify {
+        voxoct_mesh::simplify(&mut mesh, &s.for_cell(grid.cell));
     }
     Ok((mesh, certified))
 }
@@ -767,6 +790,23 @@ fn half_resolution(frame: &DepthFrame) -> DepthFrame {
 mod tests {
     use super::*;
     use voxoct_kinect::SimConfig;
+
+    /// The default simplification bound follows the cell meshed; an explicit one does not.
+    #[test]
+    fn the_default_simplification_follows_the_meshed_cell() {
+        let d = Simplification::default();
+        assert_eq!(
+            d.for_cell(0.002).max_error,
+            2.0 * d.for_cell(0.001).max_error
+        );
+        assert_eq!(d.for_cell(0.001).max_error, Simplify::LEAF_FRACTION * 0.001);
+        let fixed = Simplification {
+            max_error_m: Some(3e-4),
+            target_triangles: Some(10),
+        };
+        assert_eq!(fixed.for_cell(0.002).max_error, 3e-4);
+        assert_eq!(fixed.for_cell(0.002).target_triangles, Some(10));
+    }
 
     /// The closure on a grid one level coarser (a budget the box exceeds) closes a simulated
     /// figurine, whose inside and the underside of whose ring no view sees, to nearly the

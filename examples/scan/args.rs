@@ -7,9 +7,9 @@ use clap::{ArgMatches, Parser, ValueEnum};
 
 use voxoct::depth::filter::FilterChain;
 use voxoct::kinect::ModelUp;
-use voxoct::mesh::{MeshOptions, Placement, Simplify, Taubin};
+use voxoct::mesh::{MeshOptions, Placement, Taubin};
 use voxoct::mesh_file::{self, MeshFile};
-use voxoct::pipeline::Params;
+use voxoct::pipeline::{Params, Simplification};
 use voxoct::session::{self, Session, SimModel, Source};
 
 /// Which axis of a file points up.
@@ -347,16 +347,15 @@ impl Args {
     }
 
     /// The simplification `--max-error`, `--triangles`, `--no-simplify` and `--thesis` ask
-    /// for: on by default with [`Simplify::for_leaf`] of the meshed cell (`--leaf · 2^--lod`);
-    /// off with `--no-simplify`, and with `--thesis` unless asked for by the other two.
-    fn simplify(&self) -> Option<Simplify> {
+    /// for: on by default (a quarter of the meshed cell unless `--max-error`); off with
+    /// `--no-simplify`, and with `--thesis` unless asked for by the other two.
+    fn simplify(&self) -> Option<Simplification> {
         let asked = self.max_error.is_some() || self.triangles.is_some();
         if self.no_simplify || (self.thesis && !asked) {
             return None;
         }
-        let cell = self.leaf * 2f32.powi(self.lod.min(30) as i32);
-        Some(Simplify {
-            max_error: self.max_error.unwrap_or(Simplify::for_leaf(cell).max_error),
+        Some(Simplification {
+            max_error_m: self.max_error,
             target_triangles: self.triangles,
         })
     }
