@@ -358,14 +358,6 @@ pub enum PipelineError {
         #[source]
         source: OctreeError,
     },
-    /// `lod` is more levels than the octree has.
-    #[error("level of detail {lod} is more levels than the octree has ({depth})")]
-    Lod {
-        /// Levels asked for.
-        lod: u32,
-        /// The octree's depth.
-        depth: u32,
-    },
     /// Meshing failed (an option out of range, a solid fill too large).
     #[error("meshing: {0}")]
     Mesh(#[from] MeshError),
@@ -540,19 +532,9 @@ fn mesh_tree(
     filtered: Vec<DepthFrame>,
     angles: &[f32],
 ) -> Result<(Mesh, bool), PipelineError> {
-    let depth = tree
-        .depth()
-        .checked_sub(params.lod)
-        .ok_or(PipelineError::Lod {
-            lod: params.lod,
-            depth: tree.depth(),
-        })?;
-    let mut options = params.mesh;
-    if options.solid && options.floor == Floor::LowestMarked {
-        // The object stands on the platform (y = 0): its base is there, not at the clip
-        // box's floor a few millimetres above, which only keeps the platform's readings out.
-        options.floor = Floor::Y(config.clip.min.y.min(0.0));
-    }
+    // `Params::validate` refused a `lod` beyond the depth of this root and leaf.
+    let depth = tree.depth() - params.lod;
+    let options = mesh_options(config, params);
     let grid = tree.grid(depth);
     let mut cells = tree.cells_at_depth(depth);
     if params.carve && options.solid {
@@ -576,6 +558,18 @@ fn mesh_tree(
         voxoct_mesh::simplify(&mut mesh, &s.for_cell(grid.cell));
     }
     Ok((mesh, certified))
+}
+
+/// The meshing options of `params` for a scan with `config`: in solid mode with
+/// [`Floor::LowestMarked`], the floor is put on the platform (y = 0) — the object stands
+/// there, not at the clip box's floor a few millimetres above, which only keeps the
+/// platform's readings out.
+fn mesh_options(config: &ScannerConfig, params: &Params) -> MeshOptions {
+    let mut options = params.mesh;
+    if options.solid && options.floor == Floor::LowestMarked {
+        options.floor = Floor::Y(config.clip.min.y.min(0.0));
+    }
+    options
 }
 
 /// Cells of the closure box past which [`close_unseen`] runs on a coarser grid: its views'
@@ -654,17 +648,15 @@ fn close_unseen_in_budget(
     let sdf = -grid.cell * CLOSED_HITS as f32;
     for c in added {
         let base = c.coord << k;
+        // The fine layers of the coarse cell at or above the floor.
         for z in 0..side {
-            for y in 0..side {
+            for y in floor.saturating_sub(base.y).min(side)..side {
                 for x in 0..side {
-                    let coord = base + UVec3::new(x, y, z);
-                    if coord.y >= floor {
-                        cells.push(Cell {
-                            coord,
-                            hits: CLOSED_HITS,
-                            sdf_sum: sdf,
-                        });
-                    }
+                    cells.push(Cell {
+                        coord: base + UVec3::new(x, y, z),
+                        hits: CLOSED_HITS,
+                        sdf_sum: sdf,
+                    });
                 }
             }
         }
@@ -830,8 +822,7 @@ mod tests {
             triangulate_snapshots(&config, &filtered, &angles, params.max_edge_sq).unwrap();
         let tree = build_octree(&config, &params, &triangles).unwrap();
         let depth = tree.depth();
-        let mut options = params.mesh;
-        options.floor = Floor::Y(config.clip.min.y.min(0.0));
+        let options = mesh_options(&config, &params);
         let grid = tree.grid(depth);
         let marked = tree.cells_at_depth(depth);
         let (lo, hi) = closure_box(&marked, &grid, closure_floor(&options, &grid)).unwrap();

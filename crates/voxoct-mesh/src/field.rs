@@ -289,7 +289,11 @@ fn fill_enclosed_dense(
     let values = BoxValues::new(cells, lo, n);
     let mut marked = values.marked.clone();
     remove_small_groups(&mut marked, min_component);
-    let chosen = narrowest_closing(&marked, floor.is_some(), max_gap);
+    let chosen = narrowest_closing(max_gap, |gap| {
+        let e = enclosed(&marked, floor.is_some(), gap);
+        let count = e.count() as u64;
+        (e, count)
+    });
     // Kept cells: marked or enclosed, minus the specks.
     let mut keep = marked.clone();
     for (k, e) in keep.bits.iter_mut().zip(&chosen.bits) {
@@ -329,15 +333,14 @@ fn fill_enclosed_tiled(
     }
     // Box order (z, y, x); of repeated coordinates the last counts, as in the dense box.
     cells.sort_by_key(|c| (c.0.z, c.0.y, c.0.x));
-    let mut kept = 0;
-    for r in 0..cells.len() {
-        if r + 1 < cells.len() && cells[r].0 == cells[r + 1].0 {
-            continue;
+    // `dedup_by` keeps the first of a run: carry each later value onto it.
+    cells.dedup_by(|later, first| {
+        let same = later.0 == first.0;
+        if same {
+            *first = *later;
         }
-        cells[kept] = cells[r];
-        kept += 1;
-    }
-    cells.truncate(kept);
+        same
+    });
     let local = |c: UVec3| (c.as_ivec3() - origin).as_uvec3();
     let mut marked = tiled::Tiled::new(t);
     for c in cells.iter() {
@@ -345,17 +348,11 @@ fn fill_enclosed_tiled(
         marked.set(q.x as usize, q.y as usize, q.z as usize);
     }
     tiled::remove_small_groups(&mut marked, min_component);
-    let closed_bottom = floor.is_some();
-    let widest = tiled::enclosed(&marked, closed_bottom, max_gap);
-    let reference = widest.count();
-    let mut chosen = widest;
-    for gap in 0..max_gap {
-        let v = tiled::enclosed(&marked, closed_bottom, gap);
-        if 2 * v.count() >= reference {
-            chosen = v;
-            break;
-        }
-    }
+    let chosen = narrowest_closing(max_gap, |gap| {
+        let e = tiled::enclosed(&marked, floor.is_some(), gap);
+        let count = e.count();
+        (e, count)
+    });
     let mut keep = marked.or(&chosen);
     if let Some((min, inside)) = specks {
         let mut by_value = tiled::Tiled::new(t);
@@ -528,12 +525,13 @@ impl BoxValues {
 
 /// The enclosed cells of the smallest closing (from 0) whose enclosed space is at least
 /// half that of the widest, `max_gap`.
-fn narrowest_closing(marked: &BitBox, floor: bool, max_gap: u32) -> BitBox {
-    let widest = enclosed(marked, floor, max_gap);
-    let reference = widest.count();
+/// `enclosed(gap)` gives the enclosed cells of a closing and their count (the dense or the
+/// tiled fill's).
+fn narrowest_closing<S>(max_gap: u32, enclosed: impl Fn(u32) -> (S, u64)) -> S {
+    let (widest, reference) = enclosed(max_gap);
     for gap in 0..max_gap {
-        let v = enclosed(marked, floor, gap);
-        if 2 * v.count() >= reference {
+        let (v, count) = enclosed(gap);
+        if 2 * count >= reference {
             return v;
         }
     }

@@ -10,7 +10,6 @@
 //! [`crate::bitbox::BitBox`] version gives on the same box.
 
 use crate::bitbox::{BitBox, fill_runs};
-use crate::tables::corner_offset;
 
 /// Cells of a tile along x (one word per row).
 pub(crate) const TX: usize = 64;
@@ -43,13 +42,13 @@ pub(crate) struct Tiled {
     pool: Vec<u64>,
 }
 
-/// The 14 Kuhn directions (the mesh's connectivity between cells).
+/// The 14 Kuhn directions (the mesh's connectivity between cells): the parent module's seven
+/// positive ones and their opposites.
 fn kuhn_dirs() -> [[i32; 3]; 14] {
     let mut out = [[0; 3]; 14];
-    for d in 1..8u8 {
-        let o = corner_offset(d);
-        out[2 * (d as usize - 1)] = o;
-        out[2 * (d as usize - 1) + 1] = [-o[0], -o[1], -o[2]];
+    for (k, d) in super::kuhn_dirs().into_iter().enumerate() {
+        out[2 * k] = d.to_array();
+        out[2 * k + 1] = (-d).to_array();
     }
     out
 }
@@ -176,7 +175,7 @@ impl Tiled {
         self.pool.shrink_to_fit();
     }
 
-    /// The set combined tile by tile with `other` by `f` (on words; `f(0, 0)` must be 0).
+    /// The set combined tile by tile with `other` by `f` (on words).
     fn combine(&self, other: &Self, f: impl Fn(u64, u64) -> u64) -> Self {
         let mut out = Self::new(self.t);
         for i in 0..self.tiles() {
@@ -193,9 +192,10 @@ impl Tiled {
                 };
                 continue;
             }
-            let rows: Vec<u64> = (0..ROWS)
-                .map(|r| f(self.word(i, r), other.word(i, r)))
-                .collect();
+            let mut rows = [0u64; ROWS];
+            for (r, w) in rows.iter_mut().enumerate() {
+                *w = f(self.word(i, r), other.word(i, r));
+            }
             if rows.iter().all(|&w| w == 0) {
                 continue;
             }
@@ -225,24 +225,7 @@ impl Tiled {
 
     /// Cells in neither `self` nor `other`.
     pub fn nor(&self, other: &Self) -> Self {
-        let mut out = Self::new(self.t);
-        for i in 0..self.tiles() {
-            let (a, b) = (self.grid[i], other.grid[i]);
-            if a == ZERO && b == ZERO {
-                out.grid[i] = ONE;
-            } else if a == ONE || b == ONE {
-                continue;
-            } else {
-                let rows: Vec<u64> = (0..ROWS)
-                    .map(|r| !(self.word(i, r) | other.word(i, r)))
-                    .collect();
-                if rows.iter().any(|&w| w != 0) {
-                    out.dense_mut(i).copy_from_slice(&rows);
-                }
-            }
-        }
-        out.compact();
-        out
+        self.combine(other, |a, b| !(a | b))
     }
 
     /// The set dilated by `k` cells (L∞); cells beyond the grid count as set when `beyond`.
@@ -350,7 +333,7 @@ impl TiledFlood {
     /// Adds to `reached` the free cells of word `r` of tile `i` in runs (within the word)
     /// that hold a bit of `seed` — the whole tile when it is full in `free` — and queues
     /// them; calls `on_new(tile, row, bits)` for what is new (`row` [`WHOLE`] for a whole
-    /// tile). Returns the number of new cells.
+    /// tile).
     pub fn seed(
         &mut self,
         free: &Tiled,
@@ -359,25 +342,24 @@ impl TiledFlood {
         r: usize,
         seed: u64,
         on_new: &mut impl FnMut(usize, u32, u64),
-    ) -> u64 {
+    ) {
         match free.grid[i] {
-            ZERO => 0,
+            ZERO => {}
             ONE => {
                 if reached.is_one(i) || seed == 0 {
-                    return 0;
+                    return;
                 }
                 debug_assert_eq!(reached.grid[i], ZERO);
                 reached.grid[i] = ONE;
                 on_new(i, WHOLE, u64::MAX);
                 self.stack.push((i as u32, WHOLE));
-                TILE_CELLS
             }
             _ => {
                 let f = free.word(i, r);
                 let have = reached.word(i, r);
                 let a = seed & f & !have;
                 if a == 0 {
-                    return 0;
+                    return;
                 }
                 let mut run = [0u64];
                 fill_runs(&[a], &[f], &mut run);
@@ -385,7 +367,6 @@ impl TiledFlood {
                 reached.or_word(i, r, nw);
                 on_new(i, r as u32, nw);
                 self.stack.push((i as u32, r as u32));
-                u64::from(nw.count_ones())
             }
         }
     }

@@ -226,42 +226,40 @@ impl<'a> Collapser<'a> {
     /// Collapses `c.u` into `c.w` at `c.p` (checked by [`Collapser::allowed`] just before:
     /// its rings are in `ring_u` and `ring_w`).
     fn apply(&mut self, c: &Candidate) {
-        {
-            let (u, w) = (c.u as usize, c.w as usize);
-            self.parent[u] = c.w;
-            for i in self.csr.start[u]..self.csr.start[u + 1] {
-                let t = &mut self.tris[self.csr.tris[i as usize] as usize];
-                for k in t.iter_mut() {
+        let (u, w) = (c.u as usize, c.w as usize);
+        self.parent[u] = c.w;
+        for i in self.csr.start[u]..self.csr.start[u + 1] {
+            let t = &mut self.tris[self.csr.tris[i as usize] as usize];
+            for k in t.iter_mut() {
+                if *k == c.u {
+                    *k = c.w;
+                }
+            }
+        }
+        // The fans of u's neighbours (and w's own) now see w where they saw u; the
+        // collapsed edge's two triangles become degenerate there and are skipped.
+        for &x in &self.ring_u {
+            for i in self.csr.range(x) {
+                for k in &mut self.csr.pairs[i] {
                     if *k == c.u {
                         *k = c.w;
                     }
                 }
             }
-            // The fans of u's neighbours (and w's own) now see w where they saw u; the
-            // collapsed edge's two triangles become degenerate there and are skipped.
-            for &x in &self.ring_u {
-                for i in self.csr.range(x) {
-                    for k in &mut self.csr.pairs[i] {
-                        if *k == c.u {
-                            *k = c.w;
-                        }
-                    }
-                }
-            }
-            self.pos[w] = c.p;
-            let qu = self.quad[u];
-            self.quad[w].add(&qu);
-            let nu = self.nrm[u];
-            self.nrm[w] += nu;
-            self.locked[u] = true;
-            self.locked[w] = true;
-            self.next_active[w] = true;
-            for &x in self.ring_u.iter().chain(&self.ring_w) {
-                self.next_active[x as usize] = true;
-            }
-            self.moved[w] = true;
-            self.log.push((c.u, c.w));
         }
+        self.pos[w] = c.p;
+        let qu = self.quad[u];
+        self.quad[w].add(&qu);
+        let nu = self.nrm[u];
+        self.nrm[w] += nu;
+        self.locked[u] = true;
+        self.locked[w] = true;
+        self.next_active[w] = true;
+        for &x in self.ring_u.iter().chain(&self.ring_w) {
+            self.next_active[x as usize] = true;
+        }
+        self.moved[w] = true;
+        self.log.push((c.u, c.w));
     }
 
     /// The live corners of `v`: (next, previous) of each triangle of `v` that no collapse
