@@ -411,25 +411,25 @@ fn d07a_record_to_a_directory_holding_a_scan_is_refused_unless_forced() {
     assert_refused(&o, &["--record-to", "not empty"]);
 }
 
-/// Runs an example with a bound on its time: a hang is a failure, not a stuck test.
+/// Runs an example with a bound on its time: a hang is a failure, not a stuck test. Its
+/// output goes to files, not pipes, so a child that writes more than a pipe holds cannot
+/// block unread while it is waited for.
 fn run_bounded(name: &str, args: &[&str], cwd: &Path, limit: Duration) -> Output {
+    let logs = tempfile::tempdir().unwrap();
+    let (out, err) = (logs.path().join("stdout"), logs.path().join("stderr"));
     let mut child = Command::new(bin(name))
         .args(args)
         .current_dir(cwd)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
+        .stdout(std::fs::File::create(&out).unwrap())
+        .stderr(std::fs::File::create(&err).unwrap())
         .spawn()
         .unwrap();
-    let t = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if t.elapsed() > limit {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("{name} {args:?} still running after {limit:?}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
+    let status = wait_bounded(&mut child, limit, &format!("{name} {args:?}"));
+    Output {
+        status,
+        stdout: std::fs::read(&out).unwrap(),
+        stderr: std::fs::read(&err).unwrap(),
     }
-    child.wait_with_output().unwrap()
 }
 
 /// Rewrites the recorded scan's manifest with `edit`.
@@ -622,7 +622,12 @@ fn connect(addr: &str) -> (TcpStream, BufReader<TcpStream>) {
     (s, r)
 }
 
-fn wait_bounded(child: &mut std::process::Child, limit: Duration) -> std::process::ExitStatus {
+/// Waits for `child` (`what`, for the message), killing it and failing after `limit`.
+fn wait_bounded(
+    child: &mut std::process::Child,
+    limit: Duration,
+    what: &str,
+) -> std::process::ExitStatus {
     let t = Instant::now();
     loop {
         if let Some(st) = child.try_wait().unwrap() {
@@ -631,7 +636,7 @@ fn wait_bounded(child: &mut std::process::Child, limit: Duration) -> std::proces
         if t.elapsed() > limit {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("the server did not exit within {limit:?}");
+            panic!("{what} still running after {limit:?}");
         }
         std::thread::sleep(Duration::from_millis(20));
     }
@@ -668,7 +673,7 @@ fn d14_sigint_during_a_turn_finishes_it_replies_and_exits_0() {
     );
     let bye = read_line(&mut r);
     assert!(bye.contains("shutting down"), "{bye:?}");
-    let status = wait_bounded(&mut child, Duration::from_secs(10));
+    let status = wait_bounded(&mut child, Duration::from_secs(10), "the server");
     assert!(status.success(), "{status:?}");
 }
 
@@ -687,7 +692,7 @@ fn d15_the_server_reads_the_token_from_voxoct_turntable_token() {
         .args(["-TERM", &child.id().to_string()])
         .status()
         .unwrap();
-    assert!(wait_bounded(&mut child, Duration::from_secs(10)).success());
+    assert!(wait_bounded(&mut child, Duration::from_secs(10), "the server").success());
 
     let dir = tempfile::tempdir().unwrap();
     let bin = bin("turntable_server");
