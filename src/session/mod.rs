@@ -5,8 +5,8 @@
 //! feature) a live Kinect and a networked turntable — with the capture's size.
 //! [`Session::acquire`] checks it, estimates the memory the run will need
 //! ([`crate::budget`]) and returns the scanner settings and the snapshots, ready for
-//! [`crate::pipeline::reconstruct`]. [`capture`] is the capture loop over any
-//! [`DepthSource`] and [`Turntable`](voxoct_turntable::Turntable); [`record`] writes what was acquired as a recorded-scan
+//! [`crate::pipeline::reconstruct`]. [`capture()`] is the capture loop over any
+//! [`DepthSource`] and [`Turntable`](voxoct_turntable::Turntable); [`record()`] writes what was acquired as a recorded-scan
 //! directory.
 //!
 //! Errors name the setting as the `scan` example's flag does (`--input`, `--snapshots`, …).

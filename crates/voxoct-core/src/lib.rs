@@ -16,7 +16,7 @@
 //!   Leaf `(i, j, k)` spans `min + leaf_edge · (i, j, k)` to `… (i + 1, j + 1, k + 1)`
 //!   ([`GridSpec`], [`Octree::leaf_grid`]); coordinates are integers, never float centres.
 //! - **Marking.** A leaf is marked when the closed triangle and the closed leaf box share
-//!   a point ([`intersection_test_aabb_triangle`], Akenine-Möller's separating-axis test
+//!   a point ([`intersection_test_aabb_triangle()`], Akenine-Möller's separating-axis test
 //!   in `f64`, no epsilon: touching counts). [`Octree::insert`] marks *exactly* the
 //!   leaves the thesis's recursive descent marks ([`Octree::insert_reference`], kept in
 //!   the crate; property tests compare both). Parts outside the root are ignored.

@@ -45,7 +45,7 @@
 //!   distance stored in each [`Cell`] says the surface is; with `solid` the wall sits on the
 //!   surface itself rather than half a cell outside the outermost marked cells.
 //! - [`Taubin`] smoothing: volume-preserving, positions only.
-//! - [`simplify`]: quadric-error edge collapse bounded by a geometric error, keeping the mesh
+//! - [`simplify()`]: quadric-error edge collapse bounded by a geometric error, keeping the mesh
 //!   closed, manifold and free of new self-intersections (see [`Simplify`]).
 //!
 //! [`MeshOptions::default`] is [`MeshOptions::smooth`], the most accurate combination and

@@ -24,7 +24,7 @@
 //!   [`write_atomic`]: a temporary file in the same directory, synced and renamed, so a
 //!   failed write never leaves a partial file at the destination. [`write_atomic`] is public
 //!   so that every file the workspace writes goes through the same code.
-//! - [`read`] / [`read_file`] detect binary or ASCII robustly (a binary header may begin with
+//! - [`read()`] / [`read_file`] detect binary or ASCII robustly (a binary header may begin with
 //!   `solid`), and report truncation, a count that disagrees with the length, non-finite
 //!   coordinates and ASCII syntax errors with line numbers.
 //! - [`weld`] turns the triangle soup back into an indexed mesh: identical `f32` bits are one
