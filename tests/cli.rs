@@ -11,30 +11,10 @@ fn scan(args: &[&str], cwd: &Path) -> Output {
     common::run_example("scan", args, cwd)
 }
 
-/// Asserts a clean failure: non-zero exit, one `error:` line naming `needle`, no panic,
-/// no output file.
+/// Asserts a clean failure of the scan writing to `x.stl`
+/// ([`common::assert_scan_fails_cleanly`]).
 fn assert_fails(args: &[&str], needle: &str) {
-    let dir = tempfile::tempdir().unwrap();
-    let out = scan(&[args, &["--out", "x.stl", "-q"]].concat(), dir.path());
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{args:?} should fail");
-    assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
-    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert!(
-        lines
-            .iter()
-            .any(|l| l.to_lowercase().contains(&needle.to_lowercase())),
-        "{args:?}: stderr should mention {needle:?}: {stderr}"
-    );
-    assert!(
-        !dir.path().join("x.stl").exists(),
-        "{args:?} left a file at --out"
-    );
-    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
-    assert!(
-        leftovers.is_empty(),
-        "{args:?} left files behind: {leftovers:?}"
-    );
+    common::assert_scan_fails_cleanly(&[args, &["--out", "x.stl"]].concat(), needle);
 }
 
 #[test]

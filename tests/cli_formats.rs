@@ -94,28 +94,13 @@ fn every_output_format_is_written_z_up_on_the_bed() {
     );
 }
 
-/// A clean failure naming `needle`, and nothing written.
-fn assert_fails(args: &[&str], needle: &str) {
-    let dir = tempfile::tempdir().unwrap();
-    let out = scan(&[args, &["-q"]].concat(), dir.path());
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{args:?} should fail");
-    assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
-    assert!(
-        stderr.contains(needle),
-        "{args:?}: want {needle:?} in {stderr}"
-    );
-    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
-    assert!(left.is_empty(), "{args:?} left {left:?}");
-}
-
 #[test]
 fn unknown_output_names_fail_cleanly() {
-    assert_fails(&["--out", "x.jpg"], ".stl, .3mf, .ply, .obj");
-    assert_fails(&["--out", "noext"], ".3mf");
-    assert_fails(&["--format", "xyz"], "xyz");
-    assert_fails(&["--preview", "p.jpg"], ".png");
-    assert_fails(&["--out", "x.3mf", "--ascii"], "--ascii");
+    common::assert_scan_fails_cleanly(&["--out", "x.jpg"], ".stl, .3mf, .ply, .obj");
+    common::assert_scan_fails_cleanly(&["--out", "noext"], ".3mf");
+    common::assert_scan_fails_cleanly(&["--format", "xyz"], "xyz");
+    common::assert_scan_fails_cleanly(&["--preview", "p.jpg"], ".png");
+    common::assert_scan_fails_cleanly(&["--out", "x.3mf", "--ascii"], "--ascii");
 }
 
 #[test]
@@ -167,5 +152,5 @@ fn a_z_up_millimetre_model_keeps_its_size_and_orientation() {
     assert!(size.x > size.y, "{size}");
 
     // Read as metres it would not fit: a clear error that names the flags.
-    assert_fails(&["--model", m, "--model-units", "m"], "--model-units");
+    common::assert_scan_fails_cleanly(&["--model", m, "--model-units", "m"], "--model-units");
 }

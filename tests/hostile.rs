@@ -45,14 +45,7 @@ fn temporaries(dir: &Path) -> Vec<String> {
         .collect()
 }
 
-fn assert_refused(o: &Output, needles: &[&str]) {
-    let e = stderr(o);
-    assert!(!o.status.success(), "should fail: {e}");
-    assert!(!e.contains("panicked"), "{e}");
-    for n in needles {
-        assert!(e.contains(n), "stderr should mention {n:?}: {e}");
-    }
-}
+use common::assert_refused;
 
 // ---- 1. outputs are written to, not replaced, when they are not regular files ----------
 

@@ -65,3 +65,32 @@ pub fn run_example(name: &str, args: &[&str], cwd: &Path) -> Output {
         .output()
         .unwrap()
 }
+
+/// Asserts that `out` is a refusal as a user should see it: a non-zero exit, no panic, and
+/// stderr naming every one of `needles` (case-insensitively). Returns stderr.
+#[allow(dead_code)] // not every test crate that includes this module refuses anything
+pub fn assert_refused(out: &Output, needles: &[&str]) -> String {
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success(), "should fail: {stderr}");
+    assert!(!stderr.contains("panicked"), "panicked: {stderr}");
+    let lower = stderr.to_lowercase();
+    for n in needles {
+        assert!(
+            lower.contains(&n.to_lowercase()),
+            "stderr should mention {n:?}: {stderr}"
+        );
+    }
+    stderr
+}
+
+/// Runs the `scan` example quietly with `args` in a new empty directory and asserts a clean
+/// refusal: [`assert_refused`] naming `needle`, and nothing left in the directory — no
+/// output file, partial or temporary.
+#[allow(dead_code)]
+pub fn assert_scan_fails_cleanly(args: &[&str], needle: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run_example("scan", &[args, &["-q"]].concat(), dir.path());
+    assert_refused(&out, &[needle]);
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "{args:?} left files behind: {left:?}");
+}
