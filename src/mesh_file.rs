@@ -18,15 +18,9 @@ use voxoct_stl::{MeshFormat, MeshRef, StlFormat, WriteOptions};
 
 use crate::pipeline::InvalidSetting;
 
-/// Which axis of the written file points up.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Up {
-    /// Z up, base on z = 0, centred in x and y: what slicers and viewers expect.
-    #[default]
-    Z,
-    /// Y up: the library's platform frame (SCAN_FORMAT.md), unchanged.
-    Y,
-}
+/// Which axis of the written file points up (the one type for every mesh file's up axis,
+/// also [`voxoct_kinect::ModelUp`]).
+pub use voxoct_stl::UpAxis as Up;
 
 /// Units of the file's numbers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -6,7 +6,6 @@ use clap::parser::ValueSource;
 use clap::{ArgMatches, Parser, ValueEnum};
 
 use voxoct::depth::filter::FilterChain;
-use voxoct::kinect::ModelUp;
 use voxoct::mesh::{MeshOptions, Placement, Taubin};
 use voxoct::mesh_file::{self, MeshFile};
 use voxoct::pipeline::{Params, Simplification};
@@ -19,6 +18,16 @@ pub enum Up {
     Z,
     /// Y up: the library's platform frame (SCAN_FORMAT.md), unchanged.
     Y,
+}
+
+impl Up {
+    /// The library's up axis for this flag value.
+    fn axis(self) -> voxoct::mesh_file::Up {
+        match self {
+            Self::Z => voxoct::mesh_file::Up::Z,
+            Self::Y => voxoct::mesh_file::Up::Y,
+        }
+    }
 }
 
 /// Units of a `--model` file's numbers.
@@ -287,10 +296,7 @@ impl Args {
                         ModelUnits::M => session::ModelUnits::M,
                         ModelUnits::In => session::ModelUnits::In,
                     }),
-                    up: match self.model_up {
-                        Up::Z => ModelUp::Z,
-                        Up::Y => ModelUp::Y,
-                    },
+                    up: self.model_up.axis(),
                 },
                 None => SimModel::Builtin(self.builtin.clone()),
             };
@@ -366,12 +372,14 @@ impl Args {
             Units::Mm => mesh_file::Units::Mm,
             Units::M => mesh_file::Units::M,
         };
-        let up = match self.up {
-            Up::Z => mesh_file::Up::Z,
-            Up::Y => mesh_file::Up::Y,
-        };
-        let file = MeshFile::for_path(&self.out, self.format.as_deref(), self.ascii, units, up)
-            .map_err(|e| e.to_string())?;
+        let file = MeshFile::for_path(
+            &self.out,
+            self.format.as_deref(),
+            self.ascii,
+            units,
+            self.up.axis(),
+        )
+        .map_err(|e| e.to_string())?;
         if let Some(p) = &self.preview {
             mesh_file::check_preview_path(p).map_err(|e| e.to_string())?;
         }

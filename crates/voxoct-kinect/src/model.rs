@@ -337,15 +337,8 @@ fn load_model_file(path: &Path) -> Result<(Model, Option<f64>), SourceError> {
     Ok((model, unit))
 }
 
-/// Which axis of a model file points up.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum ModelUp {
-    /// +Z up: how slicers and CAD tools write files for printing (the default).
-    #[default]
-    Z,
-    /// +Y up: the platform frame itself (and many graphics tools).
-    Y,
-}
+/// Which axis of a model file points up (the one type for every mesh file's up axis).
+pub use voxoct_stl::UpAxis as ModelUp;
 
 /// How to read a model file's numbers: its unit and its up axis.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

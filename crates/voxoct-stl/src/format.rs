@@ -292,6 +292,19 @@ pub(crate) fn push_u64(buf: &mut Vec<u8>, mut v: u64) {
     buf.extend_from_slice(&digits[i..]);
 }
 
+/// Which axis of a mesh file points up: a file written for printing or read as slicers and
+/// CAD tools write it has +Z up; voxoct's own platform frame (SCAN_FORMAT.md) has +Y up.
+/// Going from one to the other is a proper rotation about the x axis (no mirroring).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum UpAxis {
+    /// +Z up: what slicers, viewers and CAD tools expect (the default). Files voxoct writes
+    /// this way stand with their base on z = 0, centred in x and y.
+    #[default]
+    Z,
+    /// +Y up: the platform frame itself, unchanged (and many graphics tools' convention).
+    Y,
+}
+
 #[cfg(test)]
 mod tests {
     use super::push_u64;

@@ -61,6 +61,7 @@ mod write;
 
 pub use atomic::write_atomic;
 pub use error::StlError;
+pub use format::UpAxis;
 pub use format::{
     MAX_ELEMENTS, MeshFormat, MeshRef, ReadMesh, WriteOptions, read_mesh, read_mesh_file,
     vertex_normals, write_mesh, write_mesh_file,
