@@ -133,26 +133,9 @@ for i in 0 1 2 3 4; do
   cp "$nyu/$frame" "$work/nyu-rec/$name"
   echo "$name" >>"$work/nyu-rec/INDEX.txt"
 done
-# The NYU toolbox's intrinsics; the camera at the origin looking along -Z, level; the clip
-# box holds the room.
-cat >"$work/nyu.toml" <<'EOF'
-[sensor]
-width = 640
-height = 480
-fx = 582.62
-fy = 582.69
-cx = 313.04
-cy = 238.44
-depth_unit_m = 0.001
-
-[rig]
-tilt_deg = 0.0
-sensor_position_m = [0.0, 0.0, 0.0]
-
-[clip]
-min_m = [-6.0, -6.0, -9.0]
-max_m = [6.0, 6.0, -0.3]
-EOF
+# The room's scanner settings (the NYU toolbox's intrinsics, the camera at the origin looking
+# along -Z, level; the clip box holds the room), shared with tests/room.rs and the figures.
+cp examples/nyu-room.toml "$work/nyu.toml"
 room=(--leaf 0.04 --root 16)
 log "live scan of the real NYU frame under fakenect: 1 snapshot × 1 frame"
 live "$work/nyu-live" "$work/nyu-rec" --snapshots 1 --frames 1 --config "$work/nyu.toml" \

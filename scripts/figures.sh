@@ -7,7 +7,10 @@
 #   bench     criterion benches of every crate (`cargo bench --workspace`; `--quick` passes
 #             criterion's quick mode), one row per bench: mean time and throughput;
 #   pipeline  the scan example's `--stats` per stage, for the built-in simulated scan and, when
-#             ../shared/data exists, every development scan at 1 mm and 0.5 mm;
+#             ../shared/data exists, every development scan at 1 mm and 0.5 mm and the real NYU
+#             room frame (examples/nyu-room.toml) at 5 mm and 2 mm; with DRAGON_MODEL=FILE (a
+#             Z-up mesh in millimetres, e.g. the Stanford dragon 200 mm long), a simulated scan
+#             of it at 0.5 mm and 0.25 mm;
 #   fidelity  scripts/fidelity.sh (needs ../shared/bench and a Python with its judges, PY=...):
 #             also refreshes the README's results table;
 #   print     prusa-slicer --info on the STL and 3MF of every development scan.
@@ -119,6 +122,21 @@ if want pipeline; then
     else
       echo
       echo "(The development scans in ../shared/data were not present: only the built-in scan.)"
+    fi
+    nyu=$data/nyu-kinect-fakenect
+    if [ -f "$nyu/INDEX.txt" ]; then
+      while read -r leaf root; do
+        "$bin" -q --fakenect "$nyu" --degrees-per-snapshot 0 --frames 1 \
+          --config examples/nyu-room.toml --leaf "$leaf" --root "$root" \
+          --out "$out/nyu-$leaf.stl" --stats "$out/nyu-$leaf.json"
+        stats_row "real NYU room frame (\`examples/nyu-room.toml\`, \`--root $root\`)" "$out/nyu-$leaf.json"
+      done <<<$'0.005 10.24\n0.002 8.192'
+    fi
+    if [ -n "${DRAGON_MODEL:-}" ]; then
+      for leaf in 0.0005 0.00025; do
+        "$bin" -q --model "$DRAGON_MODEL" --leaf $leaf --out "$out/dragon-$leaf.stl" --stats "$out/dragon-$leaf.json"
+        stats_row "simulated scan of \`$(basename "$DRAGON_MODEL")\` (\`DRAGON_MODEL\`)" "$out/dragon-$leaf.json"
+      done
     fi
     echo
   } > "$out/pipeline.md"
