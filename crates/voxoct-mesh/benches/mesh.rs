@@ -1,11 +1,14 @@
-//! Meshing throughput in leaves per second: the 1 mm shell of a 15 cm object.
+//! Meshing throughput in leaves per second: the 1 mm shell of a 15 cm object; the exact
+//! self-intersection test (what the smoothing's certificate costs) and simplification on
+//! its smooth mesh.
 
 use std::hint::black_box;
 
-use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use voxoct_mesh::glam::{UVec3, Vec3};
 use voxoct_mesh::{
-    Cell, GridSpec, Mesh, MeshOptions, Mesher, Placement, mesh_cells, self_intersecting_triangles,
+    Cell, GridSpec, Mesh, MeshOptions, Mesher, Placement, Simplify, mesh_cells,
+    self_intersecting_triangles, simplify,
 };
 
 /// Every 1 mm cell whose box meets a sphere of radius `r` metres (a 15 cm object for
@@ -104,9 +107,31 @@ fn bench_self_intersections(c: &mut Criterion) {
     g.finish();
 }
 
+/// Simplification with the default bound of 1 mm leaves, on the smooth mesh of the 15 cm
+/// sphere shell (about the bunny scan's size).
+fn bench_simplify(c: &mut Criterion) {
+    let (cells, grid) = sphere_shell(0.075);
+    let mesh = mesh_cells(&cells, &grid, &MeshOptions::smooth()).unwrap();
+    let opts = Simplify::for_leaf(grid.cell);
+    let mut g = c.benchmark_group("simplify");
+    g.throughput(Throughput::Elements(mesh.triangles.len() as u64));
+    g.bench_with_input(
+        BenchmarkId::new("smooth_sphere", mesh.triangles.len()),
+        &mesh,
+        |b, mesh| {
+            b.iter_batched(
+                || mesh.clone(),
+                |mut m| black_box(simplify(&mut m, &opts).triangles_after),
+                BatchSize::LargeInput,
+            )
+        },
+    );
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10);
-    targets = bench, bench_self_intersections
+    targets = bench, bench_self_intersections, bench_simplify
 }
 criterion_main!(benches);

@@ -26,9 +26,11 @@ pub(super) struct Candidate {
 pub(super) const KEY_SHIFT: u32 = 26;
 
 /// The state of one simplification round.
-pub(super) struct Collapser<'a> {
+pub(super) struct Collapser {
     pub(super) pos: Vec<Vec3>,
     pub(super) tris: Vec<[u32; 3]>,
+    /// A caller's number for each of `tris`, kept in step with them (empty: none).
+    pub(super) ids: Vec<u32>,
     pub(super) quad: Vec<Quadric>,
     /// Area-weighted normal of the original triangles merged into each vertex.
     pub(super) nrm: Vec<Vec3>,
@@ -36,7 +38,8 @@ pub(super) struct Collapser<'a> {
     pub(super) parent: Vec<u32>,
     /// Whether the vertex survived a collapse (its position and fan changed).
     pub(super) moved: Vec<bool>,
-    pub(super) frozen: &'a [bool],
+    /// Vertices that must not move (no collapse has them as an end).
+    pub(super) frozen: Vec<bool>,
     pub(super) locked: Vec<bool>,
     /// Vertices whose edges are evaluated this pass: all in the first, then those whose
     /// neighbourhood changed in the last pass or whose edge was skipped for a lock.
@@ -57,20 +60,21 @@ pub(super) struct Collapser<'a> {
     pub(super) normals: Vec<(Vec3, u32, u32)>,
 }
 
-impl<'a> Collapser<'a> {
-    /// The state before any collapse of `mesh` (numbered by first use), whose quadrics and
-    /// normals are given.
+impl Collapser {
+    /// The state before any collapse of `mesh` (numbered by first use), whose quadrics (in
+    /// coordinates relative to `origin`) and normals are given.
     pub(super) fn new(
         mesh: Mesh,
         (quad, nrm): (Vec<Quadric>, Vec<Vec3>),
-        frozen: &'a [bool],
+        frozen: Vec<bool>,
         opts: &Simplify,
+        origin: DVec3,
     ) -> Self {
         let nv = mesh.vertices.len();
-        let origin = origin(&mesh);
         Self {
             pos: mesh.vertices,
             tris: mesh.triangles,
+            ids: Vec::new(),
             quad,
             nrm,
             parent: (0..nv as u32).collect(),
@@ -145,10 +149,23 @@ impl<'a> Collapser<'a> {
         }
     }
 
-    /// Drops the triangles collapsed to an edge.
+    /// Drops the triangles collapsed to an edge (and their `ids`).
     fn drop_degenerate(&mut self) {
-        self.tris
-            .retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+        let live = |t: &[u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
+        if self.ids.is_empty() {
+            self.tris.retain(live);
+            return;
+        }
+        let mut n = 0;
+        for i in 0..self.tris.len() {
+            if live(&self.tris[i]) {
+                self.tris[n] = self.tris[i];
+                self.ids[n] = self.ids[i];
+                n += 1;
+            }
+        }
+        self.tris.truncate(n);
+        self.ids.truncate(n);
     }
 
     /// Every edge's best collapse within the error bound.
@@ -358,7 +375,7 @@ impl<'a> Collapser<'a> {
     }
 }
 
-impl Collapser<'_> {
+impl Collapser {
     /// Whether the new fan (`p` with the given outer edges and normals) stays clear of the
     /// other triangles around its outer vertices: every such pair facing away from each
     /// other is tested exactly (pairs sharing an outer edge must not fold flat).

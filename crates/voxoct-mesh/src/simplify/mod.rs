@@ -33,31 +33,42 @@
 //!   over all pairs of nearby triangles (a uniform grid; `f64` orientation tests) looks for
 //!   intersecting pairs with a changed triangle, which only distant sheets (thin walls) or
 //!   a crumpled input can give. If there are any, the original vertices merged into those
-//!   triangles and their neighbours are frozen and the first round's collapses are replayed
-//!   from the input, in their order and pass by pass, without those that touch a frozen
-//!   vertex and with every check made again (no candidate is evaluated or sorted again:
-//!   about half the cost of the first round); after [`MAX_RETRIES`] rounds the input is left
+//!   triangles and their neighbours are frozen and the round is made again without them:
+//!   the first phase's collapses (see *Speed*) are replayed from the input, in their order
+//!   and pass by pass, without those that touch a frozen vertex and with every check made
+//!   again (no candidate is evaluated or sorted again), in the regions that hold a newly
+//!   frozen vertex only (the others' results do not depend on anything outside them and
+//!   are kept); the other phases run again. After [`MAX_RETRIES`] rounds the input is left
 //!   unchanged. Intersections the input already had are left as they are (their triangles
 //!   do not count as changed).
 //!
 //! # Speed
 //! Collapses are made in passes (as meshoptimizer does): each pass evaluates the collapse
-//! cost of every edge whose neighbourhood changed (in parallel with the `parallel`
-//! feature), orders the edges by cost with a counting sort on the float's exponent bits
-//! (coarse classes keep memory access local), and collapses greedily in that order, at most
-//! one collapse per vertex per pass; vertex→triangle adjacency is a flat CSR rebuilt per
-//! pass. No hash map, no heap. The quadrics are summed in one pass over the triangles, and
-//! the candidates are sorted as indices. A marched, smoothed input with close sheets
-//! (thin walls) may take a second, replayed round. Figures: see BENCHMARKS.md (`cargo
-//! bench -p voxoct-mesh`).
+//! cost of every edge whose neighbourhood changed, orders the edges by cost with a counting
+//! sort on the float's exponent bits (coarse classes keep memory access local), and
+//! collapses greedily in that order, at most one collapse per vertex per pass;
+//! vertex→triangle adjacency is a flat CSR rebuilt per pass. No hash map, no heap.
+//!
+//! A round has three phases. First the mesh is cut into *regions*, the cubes of a coarse
+//! grid (about 8192 triangles each, each triangle in the cube of its centroid), and each
+//! region is simplified on its own copy, which fits a core's cache, the regions in
+//! parallel with the `parallel` feature. A region moves only vertices whose two rings of
+//! triangles are all its own: then no region changes anything another one's checks read
+//! (see the `regions` module), so the result does not depend on the threads, and the
+//! regions' order does not matter. Then the same with the cubes shifted by half an edge,
+//! whose regions hold the first phase's seams, starting from the vertices the first phase
+//! could not move. Last, one run over the whole mesh for what is left. A triangle target
+//! ([`Simplify::target_triangles`]) is met in cost order over the whole mesh, as one
+//! region. Figures: see BENCHMARKS.md (`cargo bench -p voxoct-mesh`).
 
 use crate::mesh::{Mesh, TopologyError};
 
 mod collapse;
 mod quadric;
+mod regions;
 
-use collapse::*;
 use quadric::*;
+use regions::REGION_TRIANGLES;
 
 /// Largest turn of a surviving triangle's normal in one collapse, degrees.
 pub const MAX_NORMAL_TURN_DEG: f32 = 75.0;
@@ -136,6 +147,15 @@ pub struct SimplifyStats {
 /// Otherwise the vertices are renumbered in the order the triangles first use them (also
 /// when no collapse could be made); triangles keep their relative order.
 pub fn simplify(mesh: &mut Mesh, opts: &Simplify) -> SimplifyStats {
+    simplify_in_regions(mesh, opts, REGION_TRIANGLES)
+}
+
+/// [`simplify`] with regions of about `per_region` triangles (0: the whole mesh as one).
+pub(crate) fn simplify_in_regions(
+    mesh: &mut Mesh,
+    opts: &Simplify,
+    per_region: usize,
+) -> SimplifyStats {
     let mut stats = SimplifyStats {
         triangles_before: mesh.triangles.len(),
         triangles_after: mesh.triangles.len(),
@@ -167,29 +187,23 @@ pub fn simplify(mesh: &mut Mesh, opts: &Simplify) -> SimplifyStats {
         return stats;
     }
     let mut frozen = vec![false; nv];
-    // The first round's collapses, which later rounds replay without the frozen vertices.
-    let mut first_round: Option<RoundLog> = None;
+    let original = renumbered_by_first_use(mesh);
+    // A triangle target is met in the order of cost over the whole mesh: one region.
+    let per_region = if opts.target_triangles.is_some() {
+        0
+    } else {
+        per_region
+    };
+    let mut rounds = regions::Rounds::new(&original, opts, per_region);
     loop {
-        let original = renumbered_by_first_use(mesh);
-        let quadrics = initial_quadrics(&original);
-        let mut work = Collapser::new(original, quadrics, &frozen, opts);
-        match &first_round {
-            None => work.run(),
-            Some((log, ends)) => work.replay(log, ends),
-        }
-        let (passes, collapses) = (work.passes, work.collapses);
-        let Collapser {
+        let regions::Round {
             pos,
             tris,
             parent,
             moved,
-            log,
-            pass_ends,
-            ..
-        } = work;
-        if first_round.is_none() {
-            first_round = Some((log, pass_ends));
-        }
+            passes,
+            collapses,
+        } = rounds.next(&frozen);
         let candidate = Mesh {
             vertices: pos,
             triangles: tris,
@@ -295,6 +309,7 @@ fn new_intersections(mesh: &Mesh, moved: &[bool]) -> Vec<u32> {
 
 #[cfg(test)]
 mod tests {
+    use super::collapse::Collapser;
     use super::*;
     use crate::{Cell, GridSpec, MeshOptions};
     use voxoct_core::glam::{IVec3, Vec3};
@@ -328,12 +343,13 @@ mod tests {
     }
 
     /// One round on `mesh`: run, or the replay of `log`.
-    fn round<'a>(mesh: &Mesh, frozen: &'a [bool], log: Option<&RoundLog>) -> Collapser<'a> {
+    fn round(mesh: &Mesh, frozen: &[bool], log: Option<&RoundLog>) -> Collapser {
         let mut work = Collapser::new(
             mesh.clone(),
             initial_quadrics(mesh),
-            frozen,
+            frozen.to_vec(),
             &Simplify::for_leaf(0.001),
+            origin(mesh),
         );
         match log {
             None => work.run(),
@@ -363,6 +379,135 @@ mod tests {
             assert_eq!(part.parent[v] as usize, v);
             assert_eq!(part.pos[v], mesh.vertices[v]);
         }
+        let mut out = Mesh {
+            vertices: part.pos,
+            triangles: part.tris,
+        };
+        out.remove_unused_vertices();
+        out.check_closed_manifold().unwrap();
+    }
+
+    /// A closed mesh of cells within `r` of three centres (two of them close, so thin walls
+    /// and narrow gaps), smoothed.
+    fn lumps(r: f32) -> Mesh {
+        let grid = GridSpec {
+            origin: Vec3::ZERO,
+            cell: 0.001,
+            resolution: 64,
+        };
+        let centres = [
+            Vec3::new(20.0, 20.0, 20.0),
+            Vec3::new(20.0 + 2.0 * r + 1.5, 21.0, 20.0),
+            Vec3::new(40.0, 40.0, 35.0),
+        ];
+        let mut cells = Vec::new();
+        for z in 0..64 {
+            for y in 0..64 {
+                for x in 0..64 {
+                    let p = IVec3::new(x, y, z).as_vec3();
+                    let d = centres
+                        .iter()
+                        .map(|c| (p - *c).length() - r)
+                        .fold(f32::INFINITY, f32::min);
+                    if d.abs() < 1.0 {
+                        cells.push(Cell {
+                            coord: p.as_uvec3(),
+                            hits: 1,
+                            sdf_sum: d * 0.001,
+                        });
+                    }
+                }
+            }
+        }
+        crate::mesh_cells(&cells, &grid, &MeshOptions::smooth()).unwrap()
+    }
+
+    /// Every guarantee of a simplification of `mesh` into `out`: closed and valid, fewer
+    /// triangles, the same pieces and genus, every vertex near the input surface.
+    fn check(mesh: &Mesh, out: &Mesh, stats: &SimplifyStats, opts: &Simplify) {
+        assert_eq!(stats.skipped, None);
+        out.check_closed_manifold().unwrap();
+        assert_eq!(crate::self_intersecting_triangles(out), Vec::<u32>::new());
+        assert!(out.triangles.len() * 3 < mesh.triangles.len());
+        let (a, b) = (mesh.stats(), out.stats());
+        assert_eq!(a.components, b.components);
+        assert_eq!(
+            mesh.vertices.len() as i64 - mesh.triangles.len() as i64 / 2,
+            out.vertices.len() as i64 - out.triangles.len() as i64 / 2
+        );
+        // Every output vertex lies within three bounds of some input vertex's plane patch:
+        // checked coarsely against the nearest input vertex (input edges are under a cell).
+        for p in &out.vertices {
+            let d = mesh
+                .vertices
+                .iter()
+                .map(|q| (*p - *q).length())
+                .fold(f32::INFINITY, f32::min);
+            assert!(d < 0.001 + 3.0 * opts.max_error, "{d}");
+        }
+    }
+
+    #[test]
+    fn regions_keep_every_guarantee_and_reach_the_single_regions_size() {
+        let mesh = lumps(9.0);
+        let opts = Simplify::for_leaf(0.001);
+        let mut whole = mesh.clone();
+        let one = simplify_in_regions(&mut whole, &opts, 0);
+        check(&mesh, &whole, &one, &opts);
+        for per_region in [256, 1024, 4096] {
+            let mut out = mesh.clone();
+            let stats = simplify_in_regions(&mut out, &opts, per_region);
+            check(&mesh, &out, &stats, &opts);
+            // The seams are simplified too: not 5 % more triangles than with one region.
+            let (n, m) = (out.triangles.len() as f64, whole.triangles.len() as f64);
+            assert!(n < 1.05 * m, "{per_region}: {n} vs {m}");
+        }
+    }
+
+    #[cfg(feature = "parallel")]
+    #[test]
+    fn regions_give_the_same_mesh_on_any_number_of_threads() {
+        let mesh = lumps(7.0);
+        let opts = Simplify::for_leaf(0.001);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut out = mesh.clone();
+            let stats = pool.install(|| simplify_in_regions(&mut out, &opts, 512));
+            (out, stats)
+        };
+        let (a, sa) = run(1);
+        let (b, sb) = run(3);
+        assert!(sa.collapses > 0);
+        assert_eq!(sa, sb);
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn a_later_round_replays_the_first_without_the_frozen_vertices() {
+        let mesh = renumbered_by_first_use(&lumps(7.0));
+        let nv = mesh.vertices.len();
+        let opts = Simplify::for_leaf(0.001);
+        let mut rounds = regions::Rounds::new(&mesh, &opts, 512);
+        let none = vec![false; nv];
+        let first = rounds.next(&none);
+        // Nothing newly frozen: the same result.
+        let again = rounds.next(&none);
+        assert_eq!((&again.pos, &again.tris), (&first.pos, &first.tris));
+        // Freeze every seventh vertex: they stay where they are, the result is closed, and it
+        // is what a fresh sequence of rounds gives.
+        let frozen: Vec<bool> = (0..nv).map(|v| v % 7 == 0).collect();
+        let part = rounds.next(&frozen);
+        for v in (0..nv).filter(|&v| frozen[v]) {
+            assert_eq!(part.parent[v] as usize, v);
+            assert_eq!(part.pos[v], mesh.vertices[v]);
+        }
+        let mut fresh = regions::Rounds::new(&mesh, &opts, 512);
+        fresh.next(&none);
+        let want = fresh.next(&frozen);
+        assert_eq!((&part.pos, &part.tris), (&want.pos, &want.tris));
         let mut out = Mesh {
             vertices: part.pos,
             triangles: part.tris,

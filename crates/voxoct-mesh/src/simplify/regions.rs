@@ -1,0 +1,572 @@
+//! Regions with frozen seams: one round of collapses split into spatial regions that run
+//! independently (in parallel with the `parallel` feature, each on its own cache-sized
+//! copy), then regions of the shifted cubes over the seams, then what is left.
+//!
+//! # Why the regions cannot disturb each other
+//! Every triangle belongs to one region (the cube of a coarse grid that holds its
+//! centroid). A vertex is *movable* in region `A` when every triangle around it and around
+//! each of its neighbours belongs to `A` (two rings inside); only movable vertices may be an
+//! end of a collapse there. A collapse in `A` rewrites only triangles around a movable
+//! vertex of `A` — all of them `A`'s, and so they stay — and its checks read the triangles
+//! around the vertices of those triangles and their positions and normals. A triangle that
+//! `B` rewrites holds a movable vertex of `B`, whose neighbours have only `B`'s triangles,
+//! so it shares no vertex with a triangle of `A`: `B` never rewrites, nor moves a vertex
+//! of, anything `A`'s checks read, and the other way round. Each region therefore runs
+//! on its own copy (its triangles and the *halo* of other regions' triangles around their
+//! vertices, everything not movable frozen) and sees exactly what a run over the whole
+//! mesh would see; the result does not depend on the number of threads.
+//!
+//! What the regions leave — the two or three rings of vertices along their borders — is
+//! then collapsed by the regions of the same cubes shifted by half an edge, which start
+//! from the vertices that were not movable (their edges were never tried), and what those
+//! leave (where the borders of both cross) by one run over the whole mesh.
+
+use std::sync::{Mutex, PoisonError};
+
+use voxoct_core::glam::{DVec3, UVec3, Vec3};
+
+use super::collapse::Collapser;
+use super::quadric::Quadric;
+use super::{RoundLog, Simplify};
+use crate::fans::VertexFans;
+use crate::mesh::Mesh;
+use crate::par;
+
+/// Triangles per region, about (a region's copy then fits a core's 2 MB L2 cache).
+pub(super) const REGION_TRIANGLES: usize = 8192;
+
+/// A vertex with triangles of more than one region.
+const MIXED: u32 = u32::MAX;
+/// A vertex that no triangle uses.
+const UNUSED: u32 = u32::MAX - 1;
+
+/// One region's copy of the mesh.
+pub(super) struct Region {
+    /// Its vertices (global indices): local vertex `i` is `verts[i]`. Those whose every
+    /// triangle is its own come first, in increasing order, then the others, also so.
+    verts: Vec<u32>,
+    /// Its triangles in local indices: its own first (in mesh order), then the halo.
+    tris: Vec<[u32; 3]>,
+    /// The global index of each of `tris`.
+    ids: Vec<u32>,
+    /// How many of `tris` are its own.
+    own: usize,
+}
+
+/// How the mesh is split: which vertices each region may move, and the regions' copies.
+pub(super) struct Plan {
+    /// Whether the vertex is movable in the region of its triangles.
+    pub(super) movable: Vec<bool>,
+    pub(super) regions: Vec<Region>,
+}
+
+/// Splits `mesh` (indices in range) into the regions of `grid`'s cubes, each triangle in
+/// the cube of its centroid (one region without a grid).
+pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>) -> Plan {
+    let nv = mesh.vertices.len();
+    let region_of = assign(mesh, grid);
+    let count = region_of.iter().max().map_or(0, |&r| r as usize + 1);
+    // The region of each vertex's triangles, or MIXED.
+    let mut pure = vec![UNUSED; nv];
+    for (t, &r) in mesh.triangles.iter().zip(&region_of) {
+        for &k in t {
+            let p = &mut pure[k as usize];
+            if *p == UNUSED {
+                *p = r;
+            } else if *p != r {
+                *p = MIXED;
+            }
+        }
+    }
+    // Movable: every triangle around it has three vertices of its own region only.
+    let mut movable: Vec<bool> = pure.iter().map(|&p| p < UNUSED).collect();
+    for t in &mesh.triangles {
+        let p = t.map(|k| pure[k as usize]);
+        if !(p[0] == p[1] && p[1] == p[2] && p[0] < UNUSED) {
+            for &k in t {
+                movable[k as usize] = false;
+            }
+        }
+    }
+    // Each region's own triangles, in mesh order, and its pure vertices, in index order
+    // (counting sorts by region).
+    let order = by_region(&region_of, count);
+    let pure_order = by_region(&pure, count);
+    let mut local_of = vec![0u32; nv];
+    for r in 0..count {
+        for (i, &v) in pure_order.1[pure_order.0[r]..pure_order.0[r + 1]]
+            .iter()
+            .enumerate()
+        {
+            local_of[v as usize] = i as u32;
+        }
+    }
+    let fans = (count > 1).then(|| VertexFans::new(nv, &mesh.triangles, |_| true, false));
+    let mut regions = Vec::new();
+    par::map_into(&mut regions, count, |r| {
+        let own = &order.1[order.0[r]..order.0[r + 1]];
+        let inner = &pure_order.1[pure_order.0[r]..pure_order.0[r + 1]];
+        let mut halo: Vec<u32> = Vec::new();
+        if let Some(fans) = &fans {
+            for &t in own {
+                for &k in &mesh.triangles[t as usize] {
+                    if pure[k as usize] == MIXED {
+                        halo.extend(
+                            fans.fan(k)
+                                .iter()
+                                .filter(|&&u| region_of[u as usize] != r as u32),
+                        );
+                    }
+                }
+            }
+            halo.sort_unstable();
+            halo.dedup();
+        }
+        let ids: Vec<u32> = own.iter().chain(&halo).copied().collect();
+        // The region's own vertices first (numbered by `local_of`), then the others.
+        let mut others: Vec<u32> = ids
+            .iter()
+            .flat_map(|&t| mesh.triangles[t as usize])
+            .filter(|&k| pure[k as usize] != r as u32)
+            .collect();
+        others.sort_unstable();
+        others.dedup();
+        let local = |k: u32| {
+            if pure[k as usize] == r as u32 {
+                local_of[k as usize]
+            } else {
+                (inner.len() + others.binary_search(&k).unwrap_or(0)) as u32
+            }
+        };
+        let tris = ids
+            .iter()
+            .map(|&t| mesh.triangles[t as usize].map(local))
+            .collect();
+        let mut verts = inner.to_vec();
+        verts.extend_from_slice(&others);
+        Region {
+            tris,
+            ids,
+            own: own.len(),
+            verts,
+        }
+    });
+    Plan { movable, regions }
+}
+
+/// The items of each group `0..count` (`group[i]`; larger values belong to none), in index
+/// order: the start of each group's run (`count + 1` of them) and the runs.
+fn by_region(group: &[u32], count: usize) -> (Vec<usize>, Vec<u32>) {
+    let mut start = vec![0usize; count + 1];
+    for &r in group {
+        if (r as usize) < count {
+            start[r as usize + 1] += 1;
+        }
+    }
+    for r in 0..count {
+        start[r + 1] += start[r];
+    }
+    let mut items = vec![0u32; start[count]];
+    let mut cursor = start.clone();
+    for (i, &r) in group.iter().enumerate() {
+        if (r as usize) < count {
+            items[cursor[r as usize]] = i as u32;
+            cursor[r as usize] += 1;
+        }
+    }
+    (start, items)
+}
+
+/// The cubes that make the regions: minimum corner, edge and count per axis.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Grid {
+    lo: Vec3,
+    edge: f32,
+    dims: UVec3,
+}
+
+impl Grid {
+    /// Cubes that hold about `per_region` triangles each of a surface of `mesh`'s mean
+    /// triangle area; `None` when that makes fewer than two regions' worth (or `per_region`
+    /// is 0, or the mesh is degenerate).
+    pub(super) fn new(mesh: &Mesh, per_region: usize) -> Option<Self> {
+        let nt = mesh.triangles.len();
+        if per_region == 0 || nt < 2 * per_region {
+            return None;
+        }
+        let at = |k: u32| mesh.vertices[k as usize];
+        let area = par::sum(&mesh.triangles, |t| {
+            let [a, b, c] = t.map(at);
+            f64::from((b - a).cross(c - a).length()) * 0.5
+        });
+        let edge = (area / nt as f64 * per_region as f64).sqrt() as f32;
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for p in &mesh.vertices {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        if !(edge.is_finite() && edge > 0.0 && lo.is_finite() && hi.is_finite()) {
+            return None;
+        }
+        let dims = ((hi - lo) / edge).as_uvec3().min(UVec3::splat(1022)) + 1;
+        Some(Self { lo, edge, dims })
+    }
+
+    /// The same cubes shifted by half an edge along every axis (one more per axis), so
+    /// that the borders of one lie inside the cubes of the other.
+    pub(super) fn shifted(&self) -> Self {
+        Self {
+            lo: self.lo - self.edge * 0.5,
+            edge: self.edge,
+            dims: self.dims + 1,
+        }
+    }
+}
+
+/// The region of every triangle: the cube of its centroid (all 0 without a grid), the
+/// cubes that hold none skipped.
+fn assign(mesh: &Mesh, grid: Option<&Grid>) -> Vec<u32> {
+    let Some(&Grid { lo, edge, dims }) = grid else {
+        return vec![0; mesh.triangles.len()];
+    };
+    let at = |k: u32| mesh.vertices[k as usize];
+    let cell = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(at);
+        let g = (((a + b + c) / 3.0 - lo) / edge)
+            .max(Vec3::ZERO)
+            .as_uvec3()
+            .min(dims - 1);
+        g.x + dims.x * (g.y + dims.y * g.z)
+    };
+    let keys = par::map(&mesh.triangles, cell);
+    // Dense region numbers in the order of the cubes.
+    let mut used = vec![u32::MAX; (dims.x * dims.y * dims.z) as usize];
+    for &k in &keys {
+        used[k as usize] = 0;
+    }
+    let mut n = 0;
+    for u in &mut used {
+        if *u == 0 {
+            *u = n;
+            n += 1;
+        }
+    }
+    keys.iter().map(|&k| used[k as usize]).collect()
+}
+
+/// The result of one round over the whole mesh (global indices, `tris` in mesh order).
+pub(super) struct Round {
+    pub(super) pos: Vec<Vec3>,
+    pub(super) tris: Vec<[u32; 3]>,
+    pub(super) parent: Vec<u32>,
+    pub(super) moved: Vec<bool>,
+    pub(super) passes: usize,
+    pub(super) collapses: usize,
+}
+
+/// The whole mesh during a round (global indices). A phase's regions read and write it
+/// under a lock, each when it starts and when it is done: a region reads only its own
+/// movable vertices (which no other region writes) and vertices no region may move, and
+/// writes only its own movable vertices and the slots of its own triangles, so the result
+/// does not depend on the order.
+struct State {
+    pos: Vec<Vec3>,
+    quad: Vec<Quadric>,
+    nrm: Vec<Vec3>,
+    parent: Vec<u32>,
+    moved: Vec<bool>,
+    /// The triangles the phase started with (its regions' triangle numbers), each
+    /// replaced by what its region made of it, or `[u32::MAX; 3]` once collapsed.
+    slots: Vec<[u32; 3]>,
+    /// The most passes a region of the phase made, and the collapses.
+    passes: usize,
+    collapses: usize,
+}
+
+impl State {
+    /// A region's result written back.
+    fn stitch(&mut self, region: &Region, out: &RegionResult) {
+        self.passes = self.passes.max(out.passes);
+        self.collapses += out.collapses;
+        for &(g, p) in &out.parents {
+            self.parent[g as usize] = p;
+        }
+        for &(g, pos, quad, nrm) in &out.moved {
+            let g = g as usize;
+            self.moved[g] = true;
+            self.pos[g] = pos;
+            self.quad[g] = quad;
+            self.nrm[g] = nrm;
+        }
+        for &id in &region.ids[..region.own] {
+            self.slots[id as usize] = [u32::MAX; 3];
+        }
+        for &(id, t) in &out.tris {
+            self.slots[id as usize] = t;
+        }
+    }
+
+    /// The surviving triangles, in order, as the next phase's.
+    fn compact(&mut self) {
+        self.slots.retain(|t| t[0] != u32::MAX);
+    }
+
+    /// Runs every region of `plan` on this state (the vertices `active` first tried,
+    /// `None`: all), or, where `done` holds a region's result, takes it as it is, or replays
+    /// `logs` on the regions `redo` names; returns the regions' results and logs.
+    #[allow(clippy::too_many_arguments)]
+    fn phase(
+        self,
+        plan: &Plan,
+        frozen: &[bool],
+        active: Option<&[bool]>,
+        opts: &Simplify,
+        origin: DVec3,
+        done: Option<(&[RegionResult], &[RoundLog], &[bool])>,
+    ) -> (Self, Vec<(RegionResult, RoundLog)>) {
+        let shared = Mutex::new(self);
+        let mut out = Vec::new();
+        par::map_into(&mut out, plan.regions.len(), |r| {
+            let region = &plan.regions[r];
+            let result = match done {
+                Some((results, _, redo)) if !redo[r] => {
+                    (results[r].clone(), (Vec::new(), Vec::new()))
+                }
+                _ => {
+                    let copy = {
+                        let st = shared.lock().unwrap_or_else(PoisonError::into_inner);
+                        region_copy(&st, region, plan, frozen, active, opts, origin)
+                    };
+                    let replay = done.map(|(_, logs, _)| &logs[r]);
+                    run_region(copy, region, plan, frozen, replay)
+                }
+            };
+            let mut st = shared.lock().unwrap_or_else(PoisonError::into_inner);
+            st.stitch(region, &result.0);
+            result
+        });
+        let mut st = shared.into_inner().unwrap_or_else(PoisonError::into_inner);
+        st.compact();
+        (st, out)
+    }
+}
+
+/// The rounds of one simplification. Each has three phases: the regions (cubes of
+/// [`REGION_TRIANGLES`]), then the regions of the same cubes shifted by half an edge
+/// (which hold most of the first phase's seams; they start from the vertices the first
+/// could not move), then one run over the whole mesh for what is left (from the vertices
+/// the second phase could not move). A later round replays the first phase's collapses
+/// without the frozen vertices in the regions that hold a vertex frozen since (the other
+/// regions' results are kept: their movable vertices that moved and the collapsed ones,
+/// and their triangles, a fraction of the mesh) and runs the other two phases again.
+pub(super) struct Rounds<'m> {
+    mesh: &'m Mesh,
+    grid: Option<Grid>,
+    plan: Plan,
+    opts: &'m Simplify,
+    /// Per first-phase region: its latest result, and the first round's collapses.
+    done: Vec<RegionResult>,
+    logs: Vec<RoundLog>,
+    /// The frozen vertices of the latest round.
+    frozen_then: Vec<bool>,
+}
+
+impl<'m> Rounds<'m> {
+    /// No round made yet; regions of about `per_region` triangles (0: one region, and no
+    /// other phase).
+    pub(super) fn new(mesh: &'m Mesh, opts: &'m Simplify, per_region: usize) -> Self {
+        let grid = Grid::new(mesh, per_region);
+        Self {
+            mesh,
+            plan: plan(mesh, grid.as_ref()),
+            grid,
+            opts,
+            done: Vec::new(),
+            logs: Vec::new(),
+            frozen_then: vec![false; mesh.vertices.len()],
+        }
+    }
+
+    /// The next round, with the `frozen` vertices (a superset of the last round's) kept
+    /// where they are.
+    pub(super) fn next(&mut self, frozen: &[bool]) -> Round {
+        let (mesh, opts, plan) = (self.mesh, self.opts, &self.plan);
+        let origin = super::quadric::origin(mesh);
+        let (quad, nrm) = super::quadric::initial_quadrics(mesh);
+        let nv = mesh.vertices.len();
+        let state = State {
+            pos: mesh.vertices.clone(),
+            quad,
+            nrm,
+            parent: (0..nv as u32).collect(),
+            moved: vec![false; nv],
+            slots: mesh.triangles.clone(),
+            passes: 0,
+            collapses: 0,
+        };
+        // The first phase: every region the first time; then those that hold a vertex
+        // frozen since, replayed (the others' results stand: they depend on nothing
+        // outside the region).
+        let redo: Vec<bool> = plan
+            .regions
+            .iter()
+            .map(|region| {
+                region
+                    .verts
+                    .iter()
+                    .any(|&g| frozen[g as usize] != self.frozen_then[g as usize])
+            })
+            .collect();
+        let done = (!self.done.is_empty()).then_some((&self.done[..], &self.logs[..], &redo[..]));
+        let (mut state, outs) = state.phase(plan, frozen, None, opts, origin, done);
+        let first = self.done.is_empty();
+        for (r, (result, log)) in outs.into_iter().enumerate() {
+            if first {
+                self.done.push(result);
+                self.logs.push(log);
+            } else {
+                self.done[r] = result;
+            }
+        }
+        self.frozen_then.copy_from_slice(frozen);
+        let mut active: Vec<bool> = plan.movable.iter().map(|m| !m).collect();
+        // The second phase: the shifted cubes, from the vertices the first could not move.
+        if let Some(grid) = &self.grid {
+            let tris = std::mem::take(&mut state.slots);
+            let lookup = Mesh {
+                vertices: std::mem::take(&mut state.pos),
+                triangles: tris,
+            };
+            let shifted = super::regions::plan(&lookup, Some(&grid.shifted()));
+            state.pos = lookup.vertices;
+            state.slots = lookup.triangles;
+            let (next, _) = state.phase(&shifted, frozen, Some(&active), opts, origin, None);
+            state = next;
+            for (a, &m) in active.iter_mut().zip(&shifted.movable) {
+                *a = !m;
+            }
+        }
+        // The seams: a run over the whole mesh, from the vertices no region could move.
+        let State {
+            pos,
+            quad,
+            nrm,
+            parent,
+            moved,
+            slots,
+            passes,
+            collapses,
+        } = state;
+        let mut seam = Collapser::new(
+            Mesh {
+                vertices: pos,
+                triangles: slots,
+            },
+            (quad, nrm),
+            frozen.to_vec(),
+            opts,
+            origin,
+        );
+        seam.parent = parent;
+        seam.moved = moved;
+        seam.active = active;
+        if self.grid.is_some() {
+            seam.run();
+        }
+        Round {
+            passes: passes + seam.passes,
+            collapses: collapses + seam.collapses,
+            pos: seam.pos,
+            tris: seam.tris,
+            parent: seam.parent,
+            moved: seam.moved,
+        }
+    }
+}
+
+/// Whether triangle `id` of the mesh is one of `region`'s own (not its halo): the own ones
+/// come first in `ids`, in increasing order.
+fn id_is_own(region: &Region, id: u32) -> bool {
+    region.ids[..region.own].binary_search(&id).is_ok()
+}
+
+/// A region's copy of the mesh, ready to run: its vertices (positions, quadrics,
+/// normals), its triangles, and which of its vertices may move and are tried first.
+fn region_copy(
+    st: &State,
+    region: &Region,
+    plan: &Plan,
+    frozen: &[bool],
+    active: Option<&[bool]>,
+    opts: &Simplify,
+    origin: DVec3,
+) -> Collapser {
+    let verts = &region.verts;
+    let local = Mesh {
+        vertices: verts.iter().map(|&g| st.pos[g as usize]).collect(),
+        triangles: region.tris.clone(),
+    };
+    let quadrics = (
+        verts.iter().map(|&g| st.quad[g as usize]).collect(),
+        verts.iter().map(|&g| st.nrm[g as usize]).collect(),
+    );
+    let fixed = verts
+        .iter()
+        .map(|&g| frozen[g as usize] || !plan.movable[g as usize])
+        .collect();
+    let mut c = Collapser::new(local, quadrics, fixed, opts, origin);
+    c.ids.clone_from(&region.ids);
+    if let Some(active) = active {
+        for (a, &g) in c.active.iter_mut().zip(verts) {
+            *a = active[g as usize];
+        }
+    }
+    c
+}
+
+/// What a region did, in global indices: its movable vertices that collapsed (into
+/// which) and that moved (where, with their quadric and normal), its own triangles that
+/// are left (numbers and corners), and its passes and collapses.
+#[derive(Clone, Default)]
+struct RegionResult {
+    parents: Vec<(u32, u32)>,
+    moved: Vec<(u32, Vec3, Quadric, Vec3)>,
+    tris: Vec<(u32, [u32; 3])>,
+    passes: usize,
+    collapses: usize,
+}
+
+/// Runs a region's copy, or replays `replay` on it; returns its result and its collapses.
+fn run_region(
+    mut c: Collapser,
+    region: &Region,
+    plan: &Plan,
+    frozen: &[bool],
+    replay: Option<&RoundLog>,
+) -> (RegionResult, RoundLog) {
+    match replay {
+        None => c.run(),
+        Some((log, ends)) => c.replay(log, ends),
+    }
+    let mut out = RegionResult {
+        passes: c.passes,
+        collapses: c.collapses,
+        ..RegionResult::default()
+    };
+    for (l, &g) in region.verts.iter().enumerate() {
+        if !plan.movable[g as usize] || frozen[g as usize] {
+            continue;
+        }
+        if c.parent[l] as usize != l {
+            out.parents.push((g, region.verts[c.parent[l] as usize]));
+        } else if c.moved[l] {
+            out.moved.push((g, c.pos[l], c.quad[l], c.nrm[l]));
+        }
+    }
+    for (t, &id) in c.tris.iter().zip(&c.ids) {
+        if id_is_own(region, id) {
+            out.tris.push((id, t.map(|k| region.verts[k as usize])));
+        }
+    }
+    (out, (c.log, c.pass_ends))
+}
