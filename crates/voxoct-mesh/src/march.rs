@@ -88,7 +88,7 @@ struct Bricks {
 }
 
 impl Bricks {
-    fn build(&mut self, entries: &[(UVec3, f32)], inside: Inside) {
+    fn build(&mut self, entries: &[(UVec3, f32)], inside: Inside, min_piece: usize) {
         let Self {
             map,
             keys,
@@ -127,6 +127,11 @@ impl Bricks {
                 let m = [0, 1, 2].map(|i| k[i] - d[i] as u32);
                 get(m, keys, vals);
             }
+        }
+        if inside == Inside::NonPositive {
+            let floor = entries.iter().map(|e| e.0.y + SHIFT).min().unwrap_or(0);
+            let mut field = Field { map, vals };
+            peel_unobserved(&mut field, keys, floor, min_piece);
         }
         let n = keys.len();
         rows.clear();
@@ -217,6 +222,138 @@ pub(crate) fn crossing(placement: Placement, fp: f32, fq: f32, len: f32) -> f32 
     }
 }
 
+/// Largest signed distance a cell marked by triangles can hold, in cells: the plane of a
+/// triangle that touches the cell passes within half its diagonal of its centre. A value
+/// below its negative (`-inf` for an enclosed cell, `-1` for one the closure adds) is an
+/// inside cell that no triangle observed.
+const HALF_DIAGONAL: f32 = 0.867;
+
+/// Whether `f` is an inside cell that no triangle observed (see [`HALF_DIAGONAL`]).
+#[inline]
+fn unobserved_inside(f: f32) -> bool {
+    f < -HALF_DIAGONAL
+}
+
+/// Whether `f` is a cell marked by triangles (its mean signed distance, see [`HALF_DIAGONAL`]).
+#[inline]
+fn observed(f: f32) -> bool {
+    f.is_finite() && f >= -HALF_DIAGONAL
+}
+
+/// Cell values by global (shifted) grid coordinates, over the bricks of [`Bricks::build`].
+struct Field<'a> {
+    map: &'a HashMap<u64, u32>,
+    vals: &'a mut [f32],
+}
+
+impl Field<'_> {
+    /// The slot of cell `g`, `None` where no brick holds it (its value is `+inf`).
+    fn slot(&self, g: [i64; 3]) -> Option<usize> {
+        if g.iter().any(|&c| !(0..1 << 24).contains(&c)) {
+            return None;
+        }
+        let g = g.map(|c| c as u32);
+        let b = *self
+            .map
+            .get(&brick_key([g[0] >> 3, g[1] >> 3, g[2] >> 3]))?;
+        Some(b as usize * 512 + local(g[0] & 7, g[1] & 7, g[2] & 7))
+    }
+
+    fn get(&self, g: [i64; 3]) -> f32 {
+        self.slot(g).map_or(f32::INFINITY, |i| self.vals[i])
+    }
+}
+
+/// Turns outside every unobserved inside cell that lies, along a grid axis, between the
+/// outside (an absent cell at or above the layer `floor`, shifted coordinates) and an
+/// observed cell; then drops the pieces of inside cells smaller than `min_piece` cells that
+/// this cuts off (as the fill drops specks, see `MeshOptions::min_component_cells`).
+///
+/// Why: the fill's gap closing and the closure put unobserved cells into the one-cell dents
+/// of the observed shell's ragged outer face. The observed cell's surface passes within half
+/// a diagonal of its centre and the outside lies beyond it, so the unobserved cell, a whole
+/// cell further out, lies outside that surface. Kept inside, such cells move the surface out
+/// by up to a cell wherever the outer face is ragged: over whole faces where noise or depth
+/// quantisation makes the shell two layers thick in patches.
+fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_piece: usize) {
+    let below_floor = |g: [i64; 3]| g[1] < i64::from(floor);
+    let mut peeled = Vec::new();
+    for (b, k) in keys.iter().enumerate() {
+        for i in 0..512usize {
+            if !unobserved_inside(field.vals[b * 512 + i]) {
+                continue;
+            }
+            let g = [
+                i64::from(k[0] * 8) + (i & 7) as i64,
+                i64::from(k[1] * 8) + ((i >> 3) & 7) as i64,
+                i64::from(k[2] * 8) + (i >> 6) as i64,
+            ];
+            let between = (0..3).any(|axis| {
+                [-1, 1].into_iter().any(|sign| {
+                    let (mut out, mut back) = (g, g);
+                    out[axis] += sign;
+                    back[axis] -= sign;
+                    !below_floor(out)
+                        && field.get(out) == f32::INFINITY
+                        && observed(field.get(back))
+                })
+            });
+            if between {
+                peeled.push(g);
+            }
+        }
+    }
+    for &g in &peeled {
+        if let Some(i) = field.slot(g) {
+            field.vals[i] = f32::INFINITY;
+        }
+    }
+    if min_piece < 2 {
+        return;
+    }
+    // The mesh connects cells along the 14 Kuhn directions.
+    let kuhn: Vec<[i64; 3]> = (1..8u8)
+        .flat_map(|d| {
+            let o = corner_offset(d).map(i64::from);
+            [o, o.map(|c| -c)]
+        })
+        .collect();
+    let inside = |f: f32| f <= 0.0;
+    let mut big = std::collections::HashSet::new();
+    let mut piece = Vec::with_capacity(min_piece);
+    for g in peeled {
+        for d in &kuhn {
+            let start = [g[0] + d[0], g[1] + d[1], g[2] + d[2]];
+            if !inside(field.get(start)) || big.contains(&start) {
+                continue;
+            }
+            // The inside piece from `start`, searched until it reaches `min_piece` cells.
+            piece.clear();
+            piece.push(start);
+            let mut next = 0;
+            while next < piece.len() && piece.len() < min_piece {
+                let c = piece[next];
+                next += 1;
+                for d in &kuhn {
+                    let n = [c[0] + d[0], c[1] + d[1], c[2] + d[2]];
+                    if inside(field.get(n)) && !piece.contains(&n) {
+                        piece.push(n);
+                    }
+                }
+            }
+            if piece.len() >= min_piece {
+                big.extend(piece.iter().copied());
+            } else {
+                for &c in &piece {
+                    if let Some(i) = field.slot(c) {
+                        field.vals[i] = f32::INFINITY;
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// A brick's edge rows and inside bits.
 #[derive(Debug, Clone)]
 struct BrickRows {
@@ -238,11 +375,14 @@ pub(crate) struct Scratch {
     per_brick: Vec<BrickRows>,
 }
 
-/// Marches `scratch.entries` into `out` (cleared first).
+/// Marches `scratch.entries` into `out` (cleared first). With [`Inside::NonPositive`], the
+/// unobserved cells in the dents of the observed surface are turned outside first, and the
+/// inside pieces of fewer than `min_piece` cells this cuts off dropped (see
+/// [`peel_unobserved`]).
 pub(crate) fn march(
     scratch: &mut Scratch,
     grid: &GridSpec,
-    inside: Inside,
+    (inside, min_piece): (Inside, usize),
     placement: Placement,
     out: &mut Mesh,
 ) {
@@ -251,7 +391,7 @@ pub(crate) fn march(
         bricks,
         per_brick,
     } = scratch;
-    bricks.build(entries, inside);
+    bricks.build(entries, inside, min_piece);
     let brick_first = number_vertices(bricks, per_brick);
     place_vertices(
         bricks,
