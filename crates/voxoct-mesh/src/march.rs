@@ -279,27 +279,54 @@ fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_pie
     let below_floor = |g: [i64; 3]| g[1] < i64::from(floor);
     let mut peeled = Vec::new();
     for (b, k) in keys.iter().enumerate() {
-        for i in 0..512usize {
-            if !unobserved_inside(field.vals[b * 512 + i]) {
+        let vals = &field.vals[b * 512..(b + 1) * 512];
+        // Only unobserved inside cells can be peeled.
+        if !vals.iter().any(|&f| unobserved_inside(f)) {
+            continue;
+        }
+        let base = [0, 1, 2].map(|a| i64::from(k[a] * 8));
+        // The bricks across each face, `[axis][0: minus, 1: plus]`.
+        let faces: [[Option<usize>; 2]; 3] = std::array::from_fn(|a| {
+            [-1i64, 1].map(|d| {
+                let mut n = k.map(i64::from);
+                n[a] += d;
+                let n = n.map(|c| u32::try_from(c).ok());
+                let n = [n[0]?, n[1]?, n[2]?];
+                field.map.get(&brick_key(n)).map(|&x| x as usize)
+            })
+        });
+        for (i, &f) in vals.iter().enumerate() {
+            if !unobserved_inside(f) {
                 continue;
             }
-            let g = [
-                i64::from(k[0] * 8) + (i & 7) as i64,
-                i64::from(k[1] * 8) + ((i >> 3) & 7) as i64,
-                i64::from(k[2] * 8) + (i >> 6) as i64,
-            ];
+            let p = [(i & 7) as i64, ((i >> 3) & 7) as i64, (i >> 6) as i64];
+            // The value of the cell at local offset `q` (at most one step out of the brick,
+            // along one axis: a face neighbour's brick).
+            let value = |q: [i64; 3]| {
+                let mut nb = b;
+                for (a, c) in q.iter().enumerate() {
+                    if !(0..8).contains(c) {
+                        match faces[a][usize::from(*c > 0)] {
+                            Some(n) => nb = n,
+                            None => return f32::INFINITY,
+                        }
+                    }
+                }
+                let q = q.map(|c| (c & 7) as u32);
+                field.vals[nb * 512 + local(q[0], q[1], q[2])]
+            };
             let between = (0..3).any(|axis| {
                 [-1, 1].into_iter().any(|sign| {
-                    let (mut out, mut back) = (g, g);
+                    let (mut out, mut back) = (p, p);
                     out[axis] += sign;
                     back[axis] -= sign;
-                    !below_floor(out)
-                        && field.get(out) == f32::INFINITY
-                        && observed(field.get(back))
+                    !below_floor([0, base[1] + out[1], 0])
+                        && value(out) == f32::INFINITY
+                        && observed(value(back))
                 })
             });
             if between {
-                peeled.push(g);
+                peeled.push([base[0] + p[0], base[1] + p[1], base[2] + p[2]]);
             }
         }
     }
