@@ -347,34 +347,43 @@ fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_pie
         .collect();
     let inside = |f: f32| f <= 0.0;
     let mut big = std::collections::HashSet::new();
-    let mut piece = Vec::with_capacity(min_piece);
+    let mut piece = Vec::new();
+    let mut member = std::collections::HashSet::new();
     for g in peeled {
         for d in &kuhn {
             let start = [g[0] + d[0], g[1] + d[1], g[2] + d[2]];
             if !inside(field.get(start)) || big.contains(&start) {
                 continue;
             }
-            // The inside piece from `start`, searched until it reaches `min_piece` cells.
+            // The inside piece from `start`, searched until it reaches `min_piece` cells or a
+            // piece already known to be that large.
             piece.clear();
+            member.clear();
             piece.push(start);
+            member.insert(start);
             let mut next = 0;
-            while next < piece.len() && piece.len() < min_piece {
+            let mut joined = false;
+            'search: while next < piece.len() && piece.len() < min_piece {
                 let c = piece[next];
                 next += 1;
                 for d in &kuhn {
                     let n = [c[0] + d[0], c[1] + d[1], c[2] + d[2]];
-                    if inside(field.get(n)) && !piece.contains(&n) {
+                    if big.contains(&n) {
+                        joined = true;
+                        break 'search;
+                    }
+                    if inside(field.get(n)) && member.insert(n) {
                         piece.push(n);
                     }
                 }
             }
-            if piece.len() >= min_piece {
+            if joined || piece.len() >= min_piece {
                 big.extend(piece.iter().copied());
-            } else {
-                for &c in &piece {
-                    if let Some(i) = field.slot(c) {
-                        field.vals[i] = f32::INFINITY;
-                    }
+                continue;
+            }
+            for &c in &piece {
+                if let Some(i) = field.slot(c) {
+                    field.vals[i] = f32::INFINITY;
                 }
             }
         }
