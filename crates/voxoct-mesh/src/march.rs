@@ -88,7 +88,7 @@ struct Bricks {
 }
 
 impl Bricks {
-    fn build(&mut self, entries: &[(UVec3, f32)], inside: Inside) {
+    fn build(&mut self, entries: &[(UVec3, f32)], inside: Inside, min_piece: usize) {
         let Self {
             map,
             keys,
@@ -127,6 +127,11 @@ impl Bricks {
                 let m = [0, 1, 2].map(|i| k[i] - d[i] as u32);
                 get(m, keys, vals);
             }
+        }
+        if inside == Inside::NonPositive {
+            let floor = entries.iter().map(|e| e.0.y + SHIFT).min().unwrap_or(0);
+            let mut field = Field { map, vals };
+            peel_unobserved(&mut field, keys, floor, min_piece);
         }
         let n = keys.len();
         rows.clear();
@@ -217,6 +222,174 @@ pub(crate) fn crossing(placement: Placement, fp: f32, fq: f32, len: f32) -> f32 
     }
 }
 
+/// Largest signed distance a cell marked by triangles can hold, in cells: the plane of a
+/// triangle that touches the cell passes within half its diagonal of its centre. A value
+/// below its negative (`-inf` for an enclosed cell, `-1` for one the closure adds) is an
+/// inside cell that no triangle observed.
+const HALF_DIAGONAL: f32 = 0.867;
+
+/// Whether `f` is an inside cell that no triangle observed (see [`HALF_DIAGONAL`]).
+#[inline]
+fn unobserved_inside(f: f32) -> bool {
+    f < -HALF_DIAGONAL
+}
+
+/// Whether `f` is a cell marked by triangles (its mean signed distance, see [`HALF_DIAGONAL`]).
+#[inline]
+fn observed(f: f32) -> bool {
+    f.is_finite() && f >= -HALF_DIAGONAL
+}
+
+/// Cell values by global (shifted) grid coordinates, over the bricks of [`Bricks::build`].
+struct Field<'a> {
+    map: &'a HashMap<u64, u32>,
+    vals: &'a mut [f32],
+}
+
+impl Field<'_> {
+    /// The slot of cell `g`, `None` where no brick holds it (its value is `+inf`).
+    fn slot(&self, g: [i64; 3]) -> Option<usize> {
+        if g.iter().any(|&c| !(0..1 << 24).contains(&c)) {
+            return None;
+        }
+        let g = g.map(|c| c as u32);
+        let b = *self
+            .map
+            .get(&brick_key([g[0] >> 3, g[1] >> 3, g[2] >> 3]))?;
+        Some(b as usize * 512 + local(g[0] & 7, g[1] & 7, g[2] & 7))
+    }
+
+    fn get(&self, g: [i64; 3]) -> f32 {
+        self.slot(g).map_or(f32::INFINITY, |i| self.vals[i])
+    }
+}
+
+/// Turns outside every unobserved inside cell that lies, along a grid axis, between the
+/// outside (an absent cell at or above the layer `floor`, shifted coordinates) and an
+/// observed cell; then drops the pieces of inside cells smaller than `min_piece` cells that
+/// this cuts off (as the fill drops specks, see `MeshOptions::min_component_cells`).
+///
+/// Why: the fill's gap closing and the closure put unobserved cells into the one-cell dents
+/// of the observed shell's ragged outer face. The observed cell's surface passes within half
+/// a diagonal of its centre and the outside lies beyond it, so the unobserved cell, a whole
+/// cell further out, lies outside that surface. Kept inside, such cells move the surface out
+/// by up to a cell wherever the outer face is ragged: over whole faces where noise or depth
+/// quantisation makes the shell two layers thick in patches.
+fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_piece: usize) {
+    let below_floor = |g: [i64; 3]| g[1] < i64::from(floor);
+    let mut peeled = Vec::new();
+    for (b, k) in keys.iter().enumerate() {
+        let vals = &field.vals[b * 512..(b + 1) * 512];
+        // Only unobserved inside cells can be peeled.
+        if !vals.iter().any(|&f| unobserved_inside(f)) {
+            continue;
+        }
+        let base = [0, 1, 2].map(|a| i64::from(k[a] * 8));
+        // The bricks across each face, `[axis][0: minus, 1: plus]`.
+        let faces: [[Option<usize>; 2]; 3] = std::array::from_fn(|a| {
+            [-1i64, 1].map(|d| {
+                let mut n = k.map(i64::from);
+                n[a] += d;
+                let n = n.map(|c| u32::try_from(c).ok());
+                let n = [n[0]?, n[1]?, n[2]?];
+                field.map.get(&brick_key(n)).map(|&x| x as usize)
+            })
+        });
+        for (i, &f) in vals.iter().enumerate() {
+            if !unobserved_inside(f) {
+                continue;
+            }
+            let p = [(i & 7) as i64, ((i >> 3) & 7) as i64, (i >> 6) as i64];
+            // The value of the cell at local offset `q` (at most one step out of the brick,
+            // along one axis: a face neighbour's brick).
+            let value = |q: [i64; 3]| {
+                let mut nb = b;
+                for (a, c) in q.iter().enumerate() {
+                    if !(0..8).contains(c) {
+                        match faces[a][usize::from(*c > 0)] {
+                            Some(n) => nb = n,
+                            None => return f32::INFINITY,
+                        }
+                    }
+                }
+                let q = q.map(|c| (c & 7) as u32);
+                field.vals[nb * 512 + local(q[0], q[1], q[2])]
+            };
+            let between = (0..3).any(|axis| {
+                [-1, 1].into_iter().any(|sign| {
+                    let (mut out, mut back) = (p, p);
+                    out[axis] += sign;
+                    back[axis] -= sign;
+                    !below_floor([0, base[1] + out[1], 0])
+                        && value(out) == f32::INFINITY
+                        && observed(value(back))
+                })
+            });
+            if between {
+                peeled.push([base[0] + p[0], base[1] + p[1], base[2] + p[2]]);
+            }
+        }
+    }
+    for &g in &peeled {
+        if let Some(i) = field.slot(g) {
+            field.vals[i] = f32::INFINITY;
+        }
+    }
+    if min_piece < 2 {
+        return;
+    }
+    // The mesh connects cells along the 14 Kuhn directions.
+    let kuhn: Vec<[i64; 3]> = (1..8u8)
+        .flat_map(|d| {
+            let o = corner_offset(d).map(i64::from);
+            [o, o.map(|c| -c)]
+        })
+        .collect();
+    let inside = |f: f32| f <= 0.0;
+    let mut big = std::collections::HashSet::new();
+    let mut piece = Vec::new();
+    let mut member = std::collections::HashSet::new();
+    for g in peeled {
+        for d in &kuhn {
+            let start = [g[0] + d[0], g[1] + d[1], g[2] + d[2]];
+            if !inside(field.get(start)) || big.contains(&start) {
+                continue;
+            }
+            // The inside piece from `start`, searched until it reaches `min_piece` cells or a
+            // piece already known to be that large.
+            piece.clear();
+            member.clear();
+            piece.push(start);
+            member.insert(start);
+            let mut next = 0;
+            let mut joined = false;
+            'search: while next < piece.len() && piece.len() < min_piece {
+                let c = piece[next];
+                next += 1;
+                for d in &kuhn {
+                    let n = [c[0] + d[0], c[1] + d[1], c[2] + d[2]];
+                    if big.contains(&n) {
+                        joined = true;
+                        break 'search;
+                    }
+                    if inside(field.get(n)) && member.insert(n) {
+                        piece.push(n);
+                    }
+                }
+            }
+            if joined || piece.len() >= min_piece {
+                big.extend(piece.iter().copied());
+                continue;
+            }
+            for &c in &piece {
+                if let Some(i) = field.slot(c) {
+                    field.vals[i] = f32::INFINITY;
+                }
+            }
+        }
+    }
+}
+
 /// A brick's edge rows and inside bits.
 #[derive(Debug, Clone)]
 struct BrickRows {
@@ -238,11 +411,14 @@ pub(crate) struct Scratch {
     per_brick: Vec<BrickRows>,
 }
 
-/// Marches `scratch.entries` into `out` (cleared first).
+/// Marches `scratch.entries` into `out` (cleared first). With [`Inside::NonPositive`], the
+/// unobserved cells in the dents of the observed surface are turned outside first, and the
+/// inside pieces of fewer than `min_piece` cells this cuts off dropped (see
+/// [`peel_unobserved`]).
 pub(crate) fn march(
     scratch: &mut Scratch,
     grid: &GridSpec,
-    inside: Inside,
+    (inside, min_piece): (Inside, usize),
     placement: Placement,
     out: &mut Mesh,
 ) {
@@ -251,7 +427,7 @@ pub(crate) fn march(
         bricks,
         per_brick,
     } = scratch;
-    bricks.build(entries, inside);
+    bricks.build(entries, inside, min_piece);
     let brick_first = number_vertices(bricks, per_brick);
     place_vertices(
         bricks,

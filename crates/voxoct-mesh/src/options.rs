@@ -45,7 +45,11 @@ pub enum Placement {
     /// cell, the marked cell's distance measured along the edge. Positions are clamped to
     /// `[0.02, 0.98]` of the edge, so topology is that of the binary field and no triangle
     /// degenerates. With [`MeshOptions::solid`], cells whose centre lies outside the surface
-    /// (positive distance) count as outside, so the wall sits on the surface itself.
+    /// (positive distance) count as outside, so the wall sits on the surface itself; so do
+    /// enclosed cells that lie, along a grid axis, between the outside and a marked cell (the
+    /// gap closing puts them into the dents of a ragged surface, beyond the marked cell's
+    /// surface), with the pieces of fewer than [`MeshOptions::min_component_cells`] this cuts
+    /// off.
     #[default]
     SignedDistance,
 }
