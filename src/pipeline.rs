@@ -26,7 +26,7 @@ use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplify};
 use crate::par;
 
 use voxoct_depth::carve::{CarveView, Seen, visibility};
-use voxoct_mesh::closure::{CLOSED_HITS, close_cells, closure_box};
+use voxoct_mesh::closure::{CLOSED_HITS, CLOSED_SDF, close_cells, closure_box};
 
 /// The frames of one snapshot and the turntable angle they were taken at.
 #[derive(Debug, Clone, PartialEq)]
@@ -645,7 +645,6 @@ fn close_unseen_in_budget(
     let side = 1u32 << k;
     let mut cells = cells;
     cells.reserve_exact(added.len() * (side as usize).pow(3));
-    let sdf = -grid.cell * CLOSED_HITS as f32;
     for c in added {
         let base = c.coord << k;
         // The fine layers of the coarse cell at or above the floor.
@@ -655,7 +654,7 @@ fn close_unseen_in_budget(
                     cells.push(Cell {
                         coord: base + UVec3::new(x, y, z),
                         hits: CLOSED_HITS,
-                        sdf_sum: sdf,
+                        sdf_sum: CLOSED_SDF,
                     });
                 }
             }
@@ -708,18 +707,10 @@ fn close_unseen(
     let dim = hi - lo + UVec3::ONE;
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.
-    close_cells(
-        cells,
-        grid,
-        (lo, hi),
-        floor,
-        min_hits,
-        margin / grid.cell,
-        |c| {
-            let d = c - lo;
-            seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
-        },
-    )
+    close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, |c| {
+        let d = c - lo;
+        seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
+    })
 }
 
 /// The snapshots of a recorded scan, ready for [`reconstruct`], with its scanner settings.

@@ -37,6 +37,13 @@ use voxoct_core::{Cell, GridSpec};
 /// Hit count given to a cell that [`close_cells`] adds: high enough to pass any `min_hits`.
 pub const CLOSED_HITS: u32 = 1 << 16;
 
+/// Signed-distance sum ([`Cell::sdf_sum`]) of a cell that [`close_cells`] adds: `-inf`, a
+/// solid cell whose surface no view observed. The mesher treats it as it treats a cell its
+/// own fill encloses: inside, and a surface between it and the outside at the middle of the
+/// edge — not at a distance no triangle measured (a finite value of one cell put every
+/// invented surface at the far end of its edges, up to a cell outside the solid).
+pub const CLOSED_SDF: f32 = f32::NEG_INFINITY;
+
 /// The box [`close_cells`] works on for these cells: their bounding box grown by one cell,
 /// down to the layer `floor` (inclusive bounds, grid coordinates). `None` without cells.
 #[must_use]
@@ -55,8 +62,8 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 }
 
 /// `cells` (marked cells of one grid) plus the cells of the box `lo..=hi` that the minimum
-/// cut ([`close_unknown`], on blocks of 2 × 2 × 2 cells) puts inside, as solid cells one cell deep inside
-/// (`mean_sdf = -cell`, [`CLOSED_HITS`] hits), ready for a solid-mode mesh.
+/// cut ([`close_unknown`], on blocks of 2 × 2 × 2 cells) puts inside, as solid cells without
+/// an observed surface ([`CLOSED_SDF`], [`CLOSED_HITS`] hits), ready for a solid-mode mesh.
 ///
 /// In the box, a marked cell with at least `min_hits` hits is solid when its mean signed
 /// distance is not positive, and empty otherwise (its centre is outside the seen surface); an
@@ -69,7 +76,6 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 #[must_use]
 pub fn close_cells(
     cells: Vec<Cell>,
-    grid: &GridSpec,
     (lo, hi): (UVec3, UVec3),
     floor: u32,
     min_hits: u32,
@@ -123,7 +129,6 @@ pub fn close_cells(
     let added = |(i, _): (usize, &Known)| inside[i] && !marked[i];
     let mut cells = cells;
     cells.reserve_exact(known.iter().enumerate().filter(|&x| added(x)).count());
-    let sdf = -grid.cell * CLOSED_HITS as f32;
     for (i, k) in known.iter().enumerate() {
         if added((i, k)) {
             let i = i as u32;
@@ -131,7 +136,7 @@ pub fn close_cells(
             cells.push(Cell {
                 coord,
                 hits: CLOSED_HITS,
-                sdf_sum: sdf,
+                sdf_sum: CLOSED_SDF,
             });
         }
     }
@@ -1081,5 +1086,38 @@ mod tests {
         assert_eq!(known[idx(dims, 3, 3, 3)], Known::Unknown);
         let inside = close_unknown(dims, &known);
         assert!(inside[idx(dims, 3, 2, 3)]);
+    }
+
+    /// Cells the closure adds carry no observed surface: meshed alone, a block of them has
+    /// its faces at the block's faces (the middle of the edges to the outside), as a block
+    /// the fill encloses would, not a cell further out.
+    #[test]
+    fn closed_cells_put_their_surface_at_the_middle_of_the_edge() {
+        let grid = GridSpec {
+            origin: voxoct_core::glam::Vec3::ZERO,
+            cell: 1.0,
+            resolution: 16,
+        };
+        let cells: Vec<Cell> = (0..27u32)
+            .map(|i| Cell {
+                coord: UVec3::new(4 + i % 3, 4 + i / 3 % 3, 4 + i / 9),
+                hits: CLOSED_HITS,
+                sdf_sum: CLOSED_SDF,
+            })
+            .collect();
+        let opts = crate::MeshOptions {
+            smoothing: None,
+            min_component_cells: 0,
+            floor: crate::Floor::None,
+            ..crate::MeshOptions::smooth()
+        };
+        let mesh = crate::mesh_cells(&cells, &grid, &opts).unwrap();
+        mesh.check_closed_manifold().unwrap();
+        let b = mesh.stats().bounds.unwrap();
+        // Cell centres 4.5..6.5 (GridSpec centres are at origin + (coord + 0.5) · cell): the
+        // block's faces are 4 and 7.
+        for (lo, hi) in [(b.min.x, b.max.x), (b.min.y, b.max.y), (b.min.z, b.max.z)] {
+            assert!((lo - 4.0).abs() < 1e-4 && (hi - 7.0).abs() < 1e-4, "{b:?}");
+        }
     }
 }

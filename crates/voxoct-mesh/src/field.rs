@@ -82,7 +82,9 @@ fn check_arguments(grid: &GridSpec, opts: &MeshOptions) -> Result<(), MeshError>
 }
 
 /// Validates the grid and the cells; returns the marked cells as `(coord, value)` with the
-/// value in cells (mean signed distance / cell edge, 0 when not finite), and the inside rule.
+/// value in cells (mean signed distance / cell edge; `-inf` kept, a solid cell without an
+/// observed surface such as the closure adds, `closure::CLOSED_SDF`; 0 when NaN or `+inf`),
+/// and the inside rule.
 pub(crate) fn prepare(
     cells: &[Cell],
     grid: &GridSpec,
@@ -104,7 +106,12 @@ pub(crate) fn prepare(
         }
         if c.hits >= min_hits {
             let v = c.mean_sdf() * inv;
-            out.push((c.coord, if v.is_finite() { v } else { 0.0 }));
+            let v = if v.is_finite() || v == f32::NEG_INFINITY {
+                v
+            } else {
+                0.0
+            };
+            out.push((c.coord, v));
         }
     }
     let flood = opts.solid || opts.placement == Placement::SignedDistance;

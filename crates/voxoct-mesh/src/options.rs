@@ -42,7 +42,9 @@ pub enum Placement {
     Midpoint,
     /// Sub-cell placement from [`voxoct_core::Cell::mean_sdf`]: between two marked cells the
     /// zero of the linearly interpolated signed distance; between a marked and an unmarked
-    /// cell, the marked cell's distance measured along the edge. Positions are clamped to
+    /// cell, the marked cell's distance measured along the edge; next to a cell without an
+    /// observed surface (enclosed by the fill, or added by the closure with
+    /// [`crate::closure::CLOSED_SDF`]), the middle of the edge. Positions are clamped to
     /// `[0.02, 0.98]` of the edge, so topology is that of the binary field and no triangle
     /// degenerates. With [`MeshOptions::solid`], cells whose centre lies outside the surface
     /// (positive distance) count as outside, so the wall sits on the surface itself; so do
