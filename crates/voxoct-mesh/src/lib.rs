@@ -170,10 +170,7 @@ impl Mesher {
         out.vertices.clear();
         out.triangles.clear();
         let inside = field::prepare(cells, grid, opts, &mut self.scratch.entries)?;
-        march::march(&mut self.scratch, grid, inside, opts.placement, out);
-        if !keep {
-            self.scratch = march::Scratch::default();
-        }
+        march::march(&mut self.scratch, grid, inside, opts.placement, out, keep);
         Ok(opts
             .smoothing
             .as_ref()
