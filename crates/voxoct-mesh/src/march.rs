@@ -541,3 +541,145 @@ fn emit_triangles(
         debug_assert!(next.next().is_none());
     });
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tables::{TETS, tet_triangles};
+    use proptest::prelude::*;
+    use voxoct_core::glam::IVec3;
+
+    /// A triangle as its three corner positions, turned so that the smallest comes first
+    /// (orientation kept).
+    fn canonical(t: [Vec3; 3]) -> [[u32; 3]; 3] {
+        let k = t.map(|p| p.to_array().map(f32::to_bits));
+        let i = (0..3).min_by_key(|&i| k[i]).unwrap_or(0);
+        [k[i], k[(i + 1) % 3], k[(i + 2) % 3]]
+    }
+
+    /// Marching without bricks: every cube with a cell at a corner, split into its six
+    /// tetrahedra, one vertex per grid edge (keyed by its lower end and direction), placed
+    /// as the marcher places it. Returns the triangles (canonical, sorted) and the number of
+    /// distinct vertices.
+    fn reference(
+        cells: &HashMap<[i32; 3], f32>,
+        grid: &GridSpec,
+        inside: Inside,
+        placement: Placement,
+    ) -> (Vec<[[u32; 3]; 3]>, usize) {
+        let value = |p: IVec3| cells.get(&p.to_array()).copied().unwrap_or(f32::INFINITY);
+        let mut cubes: Vec<IVec3> = Vec::new();
+        for c in cells.keys() {
+            for o in 0..8u8 {
+                cubes.push(IVec3::from_array(*c) - IVec3::from_array(corner_offset(o)));
+            }
+        }
+        cubes.sort_by_key(|c| c.to_array());
+        cubes.dedup();
+        let cell = f64::from(grid.cell);
+        let offset = grid.origin.as_dvec3() + DVec3::splat((0.5 - f64::from(SHIFT)) * cell);
+        let mut keys = HashMap::new();
+        let mut out = Vec::new();
+        let mut tris = Vec::new();
+        for m in cubes {
+            let mut case = 0u8;
+            for i in 0..8u8 {
+                if inside.test(value(m + IVec3::from_array(corner_offset(i)))) {
+                    case |= 1 << i;
+                }
+            }
+            for t in TETS {
+                tris.clear();
+                tet_triangles(t, case, &mut tris);
+                for tri in &tris {
+                    let pos = tri.map(|(corner, dir)| {
+                        let p = m + IVec3::from_array(corner_offset(corner));
+                        let d = corner_offset(dir);
+                        keys.insert((p.to_array(), dir), ());
+                        let q = p + IVec3::from_array(d);
+                        let len = ((d[0] + d[1] + d[2]) as f32).sqrt();
+                        let (fp, fq) = (value(p), value(q));
+                        let t = f64::from(if inside.test(fp) {
+                            crossing(placement, fp, fq, len)
+                        } else {
+                            1.0 - crossing(placement, fq, fp, len)
+                        });
+                        let s = p + IVec3::splat(SHIFT as i32);
+                        let g = DVec3::new(
+                            f64::from(s.x) + t * f64::from(d[0]),
+                            f64::from(s.y) + t * f64::from(d[1]),
+                            f64::from(s.z) + t * f64::from(d[2]),
+                        );
+                        (offset + g * cell).as_vec3()
+                    });
+                    out.push(canonical(pos));
+                }
+            }
+        }
+        out.sort_unstable();
+        (out, keys.len())
+    }
+
+    fn marched(scratch: &mut Scratch, grid: &GridSpec, inside: Inside, keep: bool) -> Mesh {
+        let mut mesh = Mesh::default();
+        march(
+            scratch,
+            grid,
+            inside,
+            Placement::SignedDistance,
+            &mut mesh,
+            keep,
+        );
+        mesh
+    }
+
+    fn cells_strategy() -> impl Strategy<Value = HashMap<[i32; 3], f32>> {
+        // Across several bricks (8 cells, shifted by 8) along every axis; values finite,
+        // enclosed (-inf) or outside (+inf, as if absent).
+        let value = prop_oneof![
+            6 => -1.5f32..1.5,
+            1 => Just(f32::NEG_INFINITY),
+            1 => Just(f32::INFINITY),
+        ];
+        prop::collection::hash_map(prop::array::uniform3(0i32..21), value, 1..250)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// The bricked marcher gives exactly the triangles of the brick-free reference, with
+        /// one vertex per crossing edge; a reused scratch (after another input) gives the
+        /// same mesh as a fresh one, and frees nothing it should keep.
+        #[test]
+        fn bricks_match_the_reference_and_scratch_reuse_changes_nothing(
+            cells in cells_strategy(),
+            other in cells_strategy(),
+            rule in 0usize..3,
+        ) {
+            let inside = [Inside::Marked, Inside::NotExterior, Inside::NonPositive][rule];
+            let grid = GridSpec { origin: Vec3::new(-0.3, 0.1, 2.0), cell: 0.001, resolution: 64 };
+            let entries = |c: &HashMap<[i32; 3], f32>| -> Vec<(UVec3, f32)> {
+                c.iter().map(|(p, &v)| (IVec3::from_array(*p).as_uvec3(), v)).collect()
+            };
+            let mut fresh = Scratch { entries: entries(&cells), ..Scratch::default() };
+            let mesh = marched(&mut fresh, &grid, inside, false);
+            prop_assert!(fresh.entries.capacity() == 0 && fresh.edges.capacity() == 0);
+            let (want, vertices) = reference(&cells, &grid, inside, Placement::SignedDistance);
+            prop_assert_eq!(mesh.vertices.len(), vertices);
+            let mut got: Vec<_> = mesh
+                .triangles
+                .iter()
+                .map(|t| canonical(t.map(|k| mesh.vertices[k as usize])))
+                .collect();
+            got.sort_unstable();
+            prop_assert_eq!(got, want);
+
+            let mut reused = Scratch { entries: entries(&other), ..Scratch::default() };
+            let _ = marched(&mut reused, &grid, inside, true);
+            reused.entries = entries(&cells);
+            let again = marched(&mut reused, &grid, inside, true);
+            prop_assert_eq!(&again.vertices, &mesh.vertices);
+            prop_assert_eq!(&again.triangles, &mesh.triangles);
+        }
+    }
+}
