@@ -171,10 +171,7 @@ impl Mesher {
         out.triangles.clear();
         let inside = field::prepare(cells, grid, opts, &mut self.scratch.entries)?;
         let inside = (inside, opts.min_component_cells);
-        march::march(&mut self.scratch, grid, inside, opts.placement, out);
-        if !keep {
-            self.scratch = march::Scratch::default();
-        }
+        march::march(&mut self.scratch, grid, inside, opts.placement, out, keep);
         Ok(opts
             .smoothing
             .as_ref()

@@ -9,7 +9,12 @@
 //! Pass 1 marks, per brick, the edges whose ends differ in inside-ness (bit rows: eight
 //! edges per XOR) and numbers them by prefix sums: a vertex's index is its brick's prefix
 //! plus a popcount, so welding needs no hash map. Pass 2 places the vertices, pass 3 emits
-//! the triangles of the active cubes from the case table.
+//! the triangles of the active cubes from the case table, each brick into its own range of
+//! the output (counted in pass 1), so the triangles are stored once.
+//!
+//! Memory follows the surface: a brick without cells (a minus neighbour) stores no values,
+//! and only a brick with vertices stores its edge rows (3 bytes a row); values and cells go
+//! as soon as the passes that read them are done (one-shot meshing).
 
 use std::collections::HashMap;
 
@@ -19,7 +24,7 @@ use voxoct_core::glam::{DVec3, UVec3, Vec3};
 use crate::mesh::Mesh;
 use crate::options::Placement;
 use crate::par;
-use crate::tables::{CASES, corner_offset};
+use crate::tables::{CASES, CaseTable, corner_offset};
 
 /// Grid coordinates are shifted by this so that cube minimum corners at −1 stay positive and
 /// every brick's minus neighbours have non-negative keys.
@@ -29,8 +34,6 @@ const ROWS: usize = 7 * 64;
 /// Vertices never come closer to an edge end than this fraction of the edge.
 pub(crate) const T_MIN: f32 = 0.02;
 const NONE: u32 = u32::MAX;
-/// Bricks per parallel task of the triangle pass (the result does not depend on it).
-const BRICKS_PER_TASK: usize = 64;
 
 /// Bits set in each byte (a table: the baseline x86-64 target has no `popcnt`).
 static POP8: [u8; 256] = {
@@ -80,6 +83,10 @@ const fn local(x: u32, y: u32, z: u32) -> usize {
 struct Bricks {
     map: HashMap<u64, u32>,
     keys: Vec<[u32; 3]>,
+    /// Per brick: its block of 512 values in `vals`, or `NONE` (no cell: every value
+    /// `+inf`).
+    block: Vec<u32>,
+    /// Values, 512 per brick that holds a cell, `[z][y][x]`.
     vals: Vec<f32>,
     /// Inside bits, `[brick][z * 8 + y]`, bit `x`.
     rows: Vec<u8>,
@@ -92,17 +99,19 @@ impl Bricks {
         let Self {
             map,
             keys,
+            block,
             vals,
             rows,
             nb,
         } = self;
         map.clear();
         keys.clear();
+        block.clear();
         vals.clear();
-        let mut get = |k: [u32; 3], keys: &mut Vec<[u32; 3]>, vals: &mut Vec<f32>| -> usize {
+        let mut get = |k: [u32; 3], keys: &mut Vec<[u32; 3]>, block: &mut Vec<u32>| -> usize {
             *map.entry(brick_key(k)).or_insert_with(|| {
                 keys.push(k);
-                vals.resize(vals.len() + 512, f32::INFINITY);
+                block.push(NONE);
                 (keys.len() - 1) as u32
             }) as usize
         };
@@ -110,14 +119,19 @@ impl Bricks {
         for &(c, f) in entries {
             let g = c + UVec3::splat(SHIFT);
             let k = [g.x >> 3, g.y >> 3, g.z >> 3];
-            let b = if k == last.0 {
+            let v = if k == last.0 {
                 last.1
             } else {
-                let b = get(k, keys, vals);
-                last = (k, b);
-                b
+                let b = get(k, keys, block);
+                if block[b] == NONE {
+                    block[b] = (vals.len() / 512) as u32;
+                    vals.resize(vals.len() + 512, f32::INFINITY);
+                }
+                let v = block[b] as usize;
+                last = (k, v);
+                v
             };
-            vals[b * 512 + local(g.x & 7, g.y & 7, g.z & 7)] = f;
+            vals[v * 512 + local(g.x & 7, g.y & 7, g.z & 7)] = f;
         }
         let occupied = keys.len();
         for b in 0..occupied {
@@ -125,19 +139,24 @@ impl Bricks {
             for o in 1..8u8 {
                 let d = corner_offset(o);
                 let m = [0, 1, 2].map(|i| k[i] - d[i] as u32);
-                get(m, keys, vals);
+                get(m, keys, block);
             }
         }
         if inside == Inside::NonPositive {
             let floor = entries.iter().map(|e| e.0.y + SHIFT).min().unwrap_or(0);
-            let mut field = Field { map, vals };
+            let mut field = Field { map, block, vals };
             peel_unobserved(&mut field, keys, floor, min_piece);
         }
         let n = keys.len();
         rows.clear();
         rows.resize(n * 64, 0);
+        let absent = if inside.test(f32::INFINITY) { 0xFF } else { 0 };
         for (b, r) in rows.chunks_exact_mut(64).enumerate() {
-            let v = &vals[b * 512..(b + 1) * 512];
+            if block[b] == NONE {
+                r.fill(absent);
+                continue;
+            }
+            let v = &vals[block[b] as usize * 512..][..512];
             for (row, bits) in r.iter_mut().enumerate() {
                 let mut m = 0u8;
                 for x in 0..8 {
@@ -190,10 +209,15 @@ impl Bricks {
     fn value(&self, b: usize, p: [u32; 3]) -> f32 {
         let o = (p[0] >> 3) | ((p[1] >> 3) << 1) | ((p[2] >> 3) << 2);
         let bb = self.nb[b][o as usize];
-        if bb == NONE {
+        let v = if bb == NONE {
+            NONE
+        } else {
+            self.block[bb as usize]
+        };
+        if v == NONE {
             f32::INFINITY
         } else {
-            self.vals[bb as usize * 512 + local(p[0] & 7, p[1] & 7, p[2] & 7)]
+            self.vals[v as usize * 512 + local(p[0] & 7, p[1] & 7, p[2] & 7)]
         }
     }
 }
@@ -224,7 +248,7 @@ pub(crate) fn crossing(placement: Placement, fp: f32, fq: f32, len: f32) -> f32 
 
 /// Largest signed distance a cell marked by triangles can hold, in cells: the plane of a
 /// triangle that touches the cell passes within half its diagonal of its centre. A value
-/// below its negative (`-inf` for an enclosed cell, `-1` for one the closure adds) is an
+/// below its negative (`-inf` for an enclosed cell or one the closure adds) is an
 /// inside cell that no triangle observed.
 const HALF_DIAGONAL: f32 = 0.867;
 
@@ -243,6 +267,8 @@ fn observed(f: f32) -> bool {
 /// Cell values by global (shifted) grid coordinates, over the bricks of [`Bricks::build`].
 struct Field<'a> {
     map: &'a HashMap<u64, u32>,
+    /// [`Bricks::block`].
+    block: &'a [u32],
     vals: &'a mut [f32],
 }
 
@@ -256,7 +282,8 @@ impl Field<'_> {
         let b = *self
             .map
             .get(&brick_key([g[0] >> 3, g[1] >> 3, g[2] >> 3]))?;
-        Some(b as usize * 512 + local(g[0] & 7, g[1] & 7, g[2] & 7))
+        let v = self.block[b as usize];
+        (v != NONE).then(|| v as usize * 512 + local(g[0] & 7, g[1] & 7, g[2] & 7))
     }
 
     fn get(&self, g: [i64; 3]) -> f32 {
@@ -279,6 +306,11 @@ fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_pie
     let below_floor = |g: [i64; 3]| g[1] < i64::from(floor);
     let mut peeled = Vec::new();
     for (b, k) in keys.iter().enumerate() {
+        // A brick without a block of values holds no cell.
+        let Some(b) = field.block.get(b).copied().filter(|&v| v != NONE) else {
+            continue;
+        };
+        let b = b as usize;
         let vals = &field.vals[b * 512..(b + 1) * 512];
         // Only unobserved inside cells can be peeled.
         if !vals.iter().any(|&f| unobserved_inside(f)) {
@@ -292,7 +324,12 @@ fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_pie
                 n[a] += d;
                 let n = n.map(|c| u32::try_from(c).ok());
                 let n = [n[0]?, n[1]?, n[2]?];
-                field.map.get(&brick_key(n)).map(|&x| x as usize)
+                field
+                    .map
+                    .get(&brick_key(n))
+                    .map(|&x| field.block[x as usize])
+                    .filter(|&v| v != NONE)
+                    .map(|v| v as usize)
             })
         });
         for (i, &f) in vals.iter().enumerate() {
@@ -390,16 +427,83 @@ fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_pie
     }
 }
 
-/// A brick's edge rows and inside bits.
+/// The crossing edges of a brick with vertices: per edge row (`(dir - 1) · 64 + z · 8 + y`),
+/// the index of the row's first vertex relative to the brick's first, and the row's mask
+/// (bit `x`: the edge from `(x, y, z)` has a vertex).
 #[derive(Debug, Clone)]
-struct BrickRows {
-    /// Per edge row: the index of the row's first vertex (low 32 bits) and the row's
-    /// crossing-edge mask (bits 32..40), in one word so a lookup is one load.
-    rows: [u64; ROWS],
-    /// [`Bricks::padded_rows`].
-    padded: [[u16; 9]; 9],
-    /// Vertices on the brick's edges.
-    count: u32,
+struct EdgeRows {
+    off: [u16; ROWS],
+    mask: [u8; ROWS],
+}
+
+impl EdgeRows {
+    /// The rows of brick `b`, from its padded inside bits.
+    fn new(p: &[[u16; 9]; 9]) -> Self {
+        let mut e = Self {
+            off: [0; ROWS],
+            mask: [0; ROWS],
+        };
+        let mut count = 0u16;
+        for d in 1..8u8 {
+            let [dx, dy, dz] = corner_offset(d).map(|v| v as usize);
+            for z in 0..8 {
+                for y in 0..8 {
+                    let m = ((p[z][y] ^ (p[z + dz][y + dy] >> dx)) & 0xFF) as u8;
+                    let r = (d as usize - 1) * 64 + z * 8 + y;
+                    e.off[r] = count;
+                    e.mask[r] = m;
+                    count += u16::from(POP8[m as usize]);
+                }
+            }
+        }
+        e
+    }
+}
+
+/// Vertices on the crossing edges of a brick with padded inside bits `p` (at most
+/// 7 · 512), and triangles of its active cubes.
+fn brick_counts(p: &[[u16; 9]; 9], table: &CaseTable) -> (u32, u32) {
+    let mut vertices = 0u32;
+    for d in 1..8u8 {
+        let [dx, dy, dz] = corner_offset(d).map(|v| v as usize);
+        for z in 0..8 {
+            for y in 0..8 {
+                let m = ((p[z][y] ^ (p[z + dz][y + dy] >> dx)) & 0xFF) as u8;
+                vertices += u32::from(POP8[m as usize]);
+            }
+        }
+    }
+    let mut triangles = 0u32;
+    if vertices > 0 {
+        for_each_active_cube(p, |_, _, _, case| {
+            triangles += u32::from(table.start[case + 1] - table.start[case]);
+        });
+    }
+    (vertices, triangles)
+}
+
+/// `f(x, y, z, case)` for every active cube (corners not all alike) of a brick with padded
+/// inside bits `p`, in z, y, x order.
+#[inline]
+fn for_each_active_cube(p: &[[u16; 9]; 9], mut f: impl FnMut(u32, usize, usize, usize)) {
+    for z in 0..8usize {
+        for y in 0..8usize {
+            let r = [[p[z][y], p[z][y + 1]], [p[z + 1][y], p[z + 1][y + 1]]];
+            let any = r[0][0] | r[0][1] | r[1][0] | r[1][1];
+            let all = r[0][0] & r[0][1] & r[1][0] & r[1][1];
+            let mut active = ((any | (any >> 1)) & !(all & (all >> 1))) & 0xFF;
+            while active != 0 {
+                let x = active.trailing_zeros();
+                active &= active - 1;
+                // Corner i = ox + 2 oy + 4 oz: two x-neighbour bits from each row.
+                let case = usize::from((r[0][0] >> x) & 3)
+                    | usize::from((r[0][1] >> x) & 3) << 2
+                    | usize::from((r[1][0] >> x) & 3) << 4
+                    | usize::from((r[1][1] >> x) & 3) << 6;
+                f(x, y, z, case);
+            }
+        }
+    }
 }
 
 /// Buffers reused from one meshing to the next.
@@ -408,107 +512,125 @@ pub(crate) struct Scratch {
     /// The cells to march (grid coordinates and value, see [`Inside`]).
     pub entries: Vec<(UVec3, f32)>,
     bricks: Bricks,
-    per_brick: Vec<BrickRows>,
+    /// Per brick: its vertex and triangle counts, then (prefix sums) its first vertex and
+    /// first triangle; one more entry holds the totals.
+    first: Vec<(u32, u32)>,
+    /// Per brick: its rows in `edges`, or `NONE` (no vertex).
+    slot: Vec<u32>,
+    /// The edge rows of the bricks with vertices.
+    edges: Vec<EdgeRows>,
 }
 
 /// Marches `scratch.entries` into `out` (cleared first). With [`Inside::NonPositive`], the
 /// unobserved cells in the dents of the observed surface are turned outside first, and the
 /// inside pieces of fewer than `min_piece` cells this cuts off dropped (see
-/// [`peel_unobserved`]).
+/// [`peel_unobserved`]). Without `keep`, each buffer is freed as soon as the passes that
+/// read it are done (lower peak memory for a one-shot mesher; `scratch` is then empty).
 pub(crate) fn march(
     scratch: &mut Scratch,
     grid: &GridSpec,
     (inside, min_piece): (Inside, usize),
     placement: Placement,
     out: &mut Mesh,
+    keep: bool,
 ) {
     let Scratch {
         entries,
         bricks,
-        per_brick,
+        first,
+        slot,
+        edges,
     } = scratch;
     bricks.build(entries, inside, min_piece);
-    let brick_first = number_vertices(bricks, per_brick);
+    if !keep {
+        *entries = Vec::new();
+        bricks.map = HashMap::new();
+    }
+    number_vertices(bricks, first, slot, edges);
     place_vertices(
         bricks,
-        per_brick,
-        &brick_first,
+        first,
+        slot,
+        edges,
         grid,
         inside,
         placement,
         &mut out.vertices,
     );
-    let vertex_count = brick_first[bricks.keys.len()];
-    emit_triangles(bricks, per_brick, vertex_count, &mut out.triangles);
+    if !keep {
+        bricks.vals = Vec::new();
+        bricks.block = Vec::new();
+    }
+    emit_triangles(bricks, first, slot, edges, &mut out.triangles);
+    if !keep {
+        *scratch = Scratch::default();
+    }
 }
 
-/// Pass 1, per brick: the crossing-edge masks of its rows and their vertex indices (the
-/// brick's first vertex, from a prefix sum over the bricks, plus the offset within the
-/// brick). Returns the first vertex of every brick and, last, the vertex count.
-fn number_vertices(bricks: &Bricks, per_brick: &mut Vec<BrickRows>) -> Vec<u32> {
+/// Pass 1: every brick's vertex and triangle counts and, by prefix sums, its first vertex
+/// and triangle (`first`, one entry more for the totals); the edge rows of the bricks with
+/// vertices (`edges`, indexed by `slot`).
+fn number_vertices(
+    bricks: &Bricks,
+    first: &mut Vec<(u32, u32)>,
+    slot: &mut Vec<u32>,
+    edges: &mut Vec<EdgeRows>,
+) {
     let n = bricks.keys.len();
-    par::map_into(per_brick, n, |b| {
-        let p = bricks.padded_rows(b);
-        let mut rows = [0u64; ROWS];
-        let mut count = 0u32;
-        for d in 1..8u8 {
-            let [dx, dy, dz] = corner_offset(d).map(|v| v as usize);
-            for z in 0..8 {
-                for y in 0..8 {
-                    let a = p[z][y];
-                    let c = p[z + dz][y + dy] >> dx;
-                    let m = ((a ^ c) & 0xFF) as u8;
-                    rows[(d as usize - 1) * 64 + z * 8 + y] =
-                        u64::from(count) | (u64::from(m) << 32);
-                    count += u32::from(POP8[m as usize]);
-                }
-            }
+    let table = &*CASES;
+    par::map_into(first, n, |b| brick_counts(&bricks.padded_rows(b), table));
+    slot.clear();
+    let mut active = Vec::new();
+    let mut acc = (0u32, 0u32);
+    for (b, c) in first.iter_mut().enumerate() {
+        let counts = *c;
+        if counts.0 > 0 {
+            slot.push(active.len() as u32);
+            active.push(b);
+        } else {
+            slot.push(NONE);
         }
-        BrickRows {
-            rows,
-            padded: p,
-            count,
-        }
-    });
-    let mut brick_first = vec![0u32; n + 1];
-    for b in 0..n {
-        brick_first[b + 1] = brick_first[b] + per_brick[b].count;
+        *c = acc;
+        acc.0 += counts.0;
+        acc.1 += counts.1;
     }
-    par::for_each_zip(per_brick.iter_mut(), 0..n, |b, br, _| {
-        let first = u64::from(brick_first[b]);
-        for r in &mut br.rows {
-            *r += first;
-        }
+    first.push(acc);
+    par::map_into(edges, active.len(), |i| {
+        EdgeRows::new(&bricks.padded_rows(active[i]))
     });
-    brick_first
 }
 
 /// Pass 2: vertex positions, in index order (each brick fills its own range of
 /// `vertices`, which is cleared first).
+#[allow(clippy::too_many_arguments)]
 fn place_vertices(
     bricks: &Bricks,
-    per_brick: &[BrickRows],
-    brick_first: &[u32],
+    first: &[(u32, u32)],
+    slot: &[u32],
+    edges: &[EdgeRows],
     grid: &GridSpec,
     inside: Inside,
     placement: Placement,
     vertices: &mut Vec<Vec3>,
 ) {
     let n = bricks.keys.len();
-    let count = brick_first[n];
+    let count = first[n].0;
     let cell = f64::from(grid.cell);
     // World position of grid point g (shifted coordinates): origin + (g - SHIFT + 0.5) · cell.
     let offset = grid.origin.as_dvec3() + DVec3::splat((0.5 - f64::from(SHIFT)) * cell);
     vertices.clear();
     vertices.resize(count as usize, Vec3::ZERO);
-    let mut ranges = Vec::with_capacity(n);
+    let mut ranges = Vec::with_capacity(edges.len());
     let mut rest = &mut vertices[..];
     for b in 0..n {
-        let (head, tail) = rest.split_at_mut((brick_first[b + 1] - brick_first[b]) as usize);
-        ranges.push(head);
+        let (head, tail) = rest.split_at_mut((first[b + 1].0 - first[b].0) as usize);
+        if slot[b] != NONE {
+            ranges.push((b, head));
+        }
         rest = tail;
     }
-    par::for_each_zip(ranges.iter_mut(), 0..n, |b, dst, _| {
+    par::for_each_zip(ranges, 0..edges.len(), |_, (b, dst), i| {
+        let rows = &edges[i];
         let key = bricks.keys[b];
         let base = [key[0] * 8, key[1] * 8, key[2] * 8];
         let mut next = dst.iter_mut();
@@ -518,8 +640,7 @@ fn place_vertices(
             let len = ((dir[0] + dir[1] + dir[2]) as f32).sqrt();
             for z in 0..8u32 {
                 for y in 0..8u32 {
-                    let mut m = (per_brick[b].rows[(d as usize - 1) * 64 + (z * 8 + y) as usize]
-                        >> 32) as u8;
+                    let mut m = rows.mask[(d as usize - 1) * 64 + (z * 8 + y) as usize];
                     while m != 0 {
                         let x = m.trailing_zeros();
                         m &= m - 1;
@@ -554,60 +675,199 @@ fn place_vertices(
     });
 }
 
-/// Pass 3: triangles, per group of bricks, joined in brick order (`triangles` is
-/// cleared first; `count` vertices make the capacity guess).
+/// Pass 3: triangles, each brick into its own range of `triangles` (cleared first), in
+/// brick order.
 fn emit_triangles(
     bricks: &Bricks,
-    per_brick: &[BrickRows],
-    count: u32,
+    first: &[(u32, u32)],
+    slot: &[u32],
+    edges: &[EdgeRows],
     triangles: &mut Vec<[u32; 3]>,
 ) {
     let n = bricks.keys.len();
     let table = &*CASES;
-    let brick_triangles = |b: usize, triangles: &mut Vec<[u32; 3]>| {
-        let p = &per_brick[b].padded;
+    triangles.clear();
+    triangles.resize(first[n].1 as usize, [0; 3]);
+    let mut ranges = Vec::with_capacity(edges.len());
+    let mut rest = &mut triangles[..];
+    for b in 0..n {
+        let (head, tail) = rest.split_at_mut((first[b + 1].1 - first[b].1) as usize);
+        if !head.is_empty() {
+            ranges.push((b, head));
+        }
+        rest = tail;
+    }
+    let count = ranges.len();
+    par::for_each_zip(ranges, 0..count, |_, (b, dst), _| {
+        let p = bricks.padded_rows(b);
         // The eight bricks this brick's cubes reach into.
         let nb = bricks.nb[b];
-        for z in 0..8usize {
-            for y in 0..8usize {
-                let r = [[p[z][y], p[z][y + 1]], [p[z + 1][y], p[z + 1][y + 1]]];
-                let any = r[0][0] | r[0][1] | r[1][0] | r[1][1];
-                let all = r[0][0] & r[0][1] & r[1][0] & r[1][1];
-                let mut active = ((any | (any >> 1)) & !(all & (all >> 1))) & 0xFF;
-                while active != 0 {
-                    let x = active.trailing_zeros();
-                    active &= active - 1;
-                    // Corner i = ox + 2 oy + 4 oz: two x-neighbour bits from each row.
-                    let case = usize::from((r[0][0] >> x) & 3)
-                        | usize::from((r[0][1] >> x) & 3) << 2
-                        | usize::from((r[1][0] >> x) & 3) << 4
-                        | usize::from((r[1][1] >> x) & 3) << 6;
-                    let edges = &table.edges
-                        [table.edge_start[case] as usize..table.edge_start[case + 1] as usize];
-                    let mut ids = [0u32; 19];
-                    for (id, e) in ids.iter_mut().zip(edges) {
-                        let (px, py, pz) = (x + e.ox, y as u32 + e.oy, z as u32 + e.oz);
-                        let o = (px >> 3) | ((py >> 3) << 1) | ((pz >> 3) << 2);
-                        let w = per_brick[nb[o as usize] as usize].rows
-                            [e.row + ((pz & 7) * 8 + (py & 7)) as usize];
-                        let m = (w >> 32) as u32;
-                        debug_assert!(m >> (px & 7) & 1 == 1, "edge without a vertex");
-                        *id = w as u32 + u32::from(POP8[(m & ((1u32 << (px & 7)) - 1)) as usize]);
-                    }
-                    let local =
-                        &table.local[table.start[case] as usize..table.start[case + 1] as usize];
-                    triangles.extend(
-                        local
-                            .iter()
-                            .map(|l| [ids[l[0] as usize], ids[l[1] as usize], ids[l[2] as usize]]),
-                    );
+        let mut next = dst.iter_mut();
+        for_each_active_cube(&p, |x, y, z, case| {
+            let cube_edges =
+                &table.edges[table.edge_start[case] as usize..table.edge_start[case + 1] as usize];
+            let mut ids = [0u32; 19];
+            for (id, e) in ids.iter_mut().zip(cube_edges) {
+                let (px, py, pz) = (x + e.ox, y as u32 + e.oy, z as u32 + e.oz);
+                let o = (px >> 3) | ((py >> 3) << 1) | ((pz >> 3) << 2);
+                let nbo = nb[o as usize] as usize;
+                let rows = &edges[slot[nbo] as usize];
+                let r = e.row + ((pz & 7) * 8 + (py & 7)) as usize;
+                let m = u32::from(rows.mask[r]);
+                debug_assert!(m >> (px & 7) & 1 == 1, "edge without a vertex");
+                *id = first[nbo].0
+                    + u32::from(rows.off[r])
+                    + u32::from(POP8[(m & ((1u32 << (px & 7)) - 1)) as usize]);
+            }
+            let local = &table.local[table.start[case] as usize..table.start[case + 1] as usize];
+            for l in local {
+                if let Some(t) = next.next() {
+                    *t = [ids[l[0] as usize], ids[l[1] as usize], ids[l[2] as usize]];
+                }
+            }
+        });
+        debug_assert!(next.next().is_none());
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tables::{TETS, tet_triangles};
+    use proptest::prelude::*;
+    use voxoct_core::glam::IVec3;
+
+    /// A triangle as its three corner positions, turned so that the smallest comes first
+    /// (orientation kept).
+    fn canonical(t: [Vec3; 3]) -> [[u32; 3]; 3] {
+        let k = t.map(|p| p.to_array().map(f32::to_bits));
+        let i = (0..3).min_by_key(|&i| k[i]).unwrap_or(0);
+        [k[i], k[(i + 1) % 3], k[(i + 2) % 3]]
+    }
+
+    /// Marching without bricks: every cube with a cell at a corner, split into its six
+    /// tetrahedra, one vertex per grid edge (keyed by its lower end and direction), placed
+    /// as the marcher places it. Returns the triangles (canonical, sorted) and the number of
+    /// distinct vertices.
+    fn reference(
+        cells: &HashMap<[i32; 3], f32>,
+        grid: &GridSpec,
+        inside: Inside,
+        placement: Placement,
+    ) -> (Vec<[[u32; 3]; 3]>, usize) {
+        let value = |p: IVec3| cells.get(&p.to_array()).copied().unwrap_or(f32::INFINITY);
+        let mut cubes: Vec<IVec3> = Vec::new();
+        for c in cells.keys() {
+            for o in 0..8u8 {
+                cubes.push(IVec3::from_array(*c) - IVec3::from_array(corner_offset(o)));
+            }
+        }
+        cubes.sort_by_key(|c| c.to_array());
+        cubes.dedup();
+        let cell = f64::from(grid.cell);
+        let offset = grid.origin.as_dvec3() + DVec3::splat((0.5 - f64::from(SHIFT)) * cell);
+        let mut keys = HashMap::new();
+        let mut out = Vec::new();
+        let mut tris = Vec::new();
+        for m in cubes {
+            let mut case = 0u8;
+            for i in 0..8u8 {
+                if inside.test(value(m + IVec3::from_array(corner_offset(i)))) {
+                    case |= 1 << i;
+                }
+            }
+            for t in TETS {
+                tris.clear();
+                tet_triangles(t, case, &mut tris);
+                for tri in &tris {
+                    let pos = tri.map(|(corner, dir)| {
+                        let p = m + IVec3::from_array(corner_offset(corner));
+                        let d = corner_offset(dir);
+                        keys.insert((p.to_array(), dir), ());
+                        let q = p + IVec3::from_array(d);
+                        let len = ((d[0] + d[1] + d[2]) as f32).sqrt();
+                        let (fp, fq) = (value(p), value(q));
+                        let t = f64::from(if inside.test(fp) {
+                            crossing(placement, fp, fq, len)
+                        } else {
+                            1.0 - crossing(placement, fq, fp, len)
+                        });
+                        let s = p + IVec3::splat(SHIFT as i32);
+                        let g = DVec3::new(
+                            f64::from(s.x) + t * f64::from(d[0]),
+                            f64::from(s.y) + t * f64::from(d[1]),
+                            f64::from(s.z) + t * f64::from(d[2]),
+                        );
+                        (offset + g * cell).as_vec3()
+                    });
+                    out.push(canonical(pos));
                 }
             }
         }
-    };
-    triangles.clear();
-    // A closed piece of genus g has 2 (V - 2 + 2g) triangles: twice the vertices, plus slack
-    // for handles, so that the buffer need not double.
-    triangles.reserve(count as usize * 2 + count as usize / 32 + 64);
-    par::extend_in_order(triangles, n, BRICKS_PER_TASK, brick_triangles);
+        out.sort_unstable();
+        (out, keys.len())
+    }
+
+    fn marched(scratch: &mut Scratch, grid: &GridSpec, inside: Inside, keep: bool) -> Mesh {
+        let mut mesh = Mesh::default();
+        march(
+            scratch,
+            grid,
+            inside,
+            Placement::SignedDistance,
+            &mut mesh,
+            keep,
+        );
+        mesh
+    }
+
+    fn cells_strategy() -> impl Strategy<Value = HashMap<[i32; 3], f32>> {
+        // Across several bricks (8 cells, shifted by 8) along every axis; values finite,
+        // enclosed (-inf) or outside (+inf, as if absent).
+        let value = prop_oneof![
+            6 => -1.5f32..1.5,
+            1 => Just(f32::NEG_INFINITY),
+            1 => Just(f32::INFINITY),
+        ];
+        prop::collection::hash_map(prop::array::uniform3(0i32..21), value, 1..250)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// The bricked marcher gives exactly the triangles of the brick-free reference, with
+        /// one vertex per crossing edge; a reused scratch (after another input) gives the
+        /// same mesh as a fresh one, and frees nothing it should keep.
+        #[test]
+        fn bricks_match_the_reference_and_scratch_reuse_changes_nothing(
+            cells in cells_strategy(),
+            other in cells_strategy(),
+            rule in 0usize..3,
+        ) {
+            let inside = [Inside::Marked, Inside::NotExterior, Inside::NonPositive][rule];
+            let grid = GridSpec { origin: Vec3::new(-0.3, 0.1, 2.0), cell: 0.001, resolution: 64 };
+            let entries = |c: &HashMap<[i32; 3], f32>| -> Vec<(UVec3, f32)> {
+                c.iter().map(|(p, &v)| (IVec3::from_array(*p).as_uvec3(), v)).collect()
+            };
+            let mut fresh = Scratch { entries: entries(&cells), ..Scratch::default() };
+            let mesh = marched(&mut fresh, &grid, inside, false);
+            prop_assert!(fresh.entries.capacity() == 0 && fresh.edges.capacity() == 0);
+            let (want, vertices) = reference(&cells, &grid, inside, Placement::SignedDistance);
+            prop_assert_eq!(mesh.vertices.len(), vertices);
+            let mut got: Vec<_> = mesh
+                .triangles
+                .iter()
+                .map(|t| canonical(t.map(|k| mesh.vertices[k as usize])))
+                .collect();
+            got.sort_unstable();
+            prop_assert_eq!(got, want);
+
+            let mut reused = Scratch { entries: entries(&other), ..Scratch::default() };
+            let _ = marched(&mut reused, &grid, inside, true);
+            reused.entries = entries(&cells);
+            let again = marched(&mut reused, &grid, inside, true);
+            prop_assert_eq!(&again.vertices, &mesh.vertices);
+            prop_assert_eq!(&again.triangles, &mesh.triangles);
+        }
+    }
 }

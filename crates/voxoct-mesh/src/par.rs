@@ -114,7 +114,8 @@ pub(crate) fn map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync) -> 
 }
 
 /// Appends to `dst` what `f(i, buffer)` appends for every `i` in `0..n`, in order of `i`
-/// (in parallel: `per_task` consecutive `i` per task, joined in order).
+/// (in parallel: `per_task` consecutive `i` per task, joined in order, a batch of tasks at
+/// a time so that the parts held at once are a batch's, not the whole output's).
 pub(crate) fn extend_in_order<T: Send>(
     dst: &mut Vec<T>,
     n: usize,
@@ -124,18 +125,23 @@ pub(crate) fn extend_in_order<T: Send>(
     #[cfg(feature = "parallel")]
     {
         let per_task = per_task.max(1);
-        let parts: Vec<Vec<T>> = (0..n.div_ceil(per_task))
-            .into_par_iter()
-            .map(|t| {
-                let mut part = Vec::new();
-                for i in t * per_task..((t + 1) * per_task).min(n) {
-                    f(i, &mut part);
-                }
-                part
-            })
-            .collect();
-        for mut part in parts {
-            dst.append(&mut part);
+        let tasks = n.div_ceil(per_task);
+        let batch = 16 * rayon::current_num_threads().max(1);
+        let mut parts: Vec<Vec<T>> = Vec::new();
+        for first in (0..tasks).step_by(batch) {
+            (first..(first + batch).min(tasks))
+                .into_par_iter()
+                .map(|t| {
+                    let mut part = Vec::new();
+                    for i in t * per_task..((t + 1) * per_task).min(n) {
+                        f(i, &mut part);
+                    }
+                    part
+                })
+                .collect_into_vec(&mut parts);
+            for mut part in parts.drain(..) {
+                dst.append(&mut part);
+            }
         }
     }
     #[cfg(not(feature = "parallel"))]

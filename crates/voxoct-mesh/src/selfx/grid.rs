@@ -94,33 +94,33 @@ impl Index {
         index.dims = ((hi - lo) * index.inv)
             .to_array()
             .map(|d| (d as u32).saturating_add(1).min(MAX_CELLS as u32));
-        let ranges: Vec<[[u32; 3]; 2]> =
-            crate::par::map(boxes, |b| [index.cell(b[0]), index.cell(b[1])]);
-        let total: usize = ranges
-            .iter()
-            .enumerate()
-            .filter(|&(t, _)| include(t))
-            .map(|(_, r)| {
+        // Each box's range of cells, computed where it is used (not stored: 24 bytes a
+        // triangle at the peak of a large mesh's check).
+        let grid = &index;
+        let range = |t: usize| [grid.cell(boxes[t][0]), grid.cell(boxes[t][1])];
+        let total: usize = (0..boxes.len())
+            .filter(|&t| include(t))
+            .map(|t| {
+                let r = range(t);
                 (0..3)
                     .map(|i| (r[1][i] - r[0][i] + 1) as usize)
                     .product::<usize>()
             })
             .sum();
         let buckets = (total.next_power_of_two() / 2).max(1);
-        index.mask = buckets as u64 - 1;
-        let mask = index.mask;
+        let mask = buckets as u64 - 1;
         // A counting sort by bucket, in `parts` consecutive runs of triangles counted and
         // placed in parallel: run `c`'s entries of a bucket go after those of runs before
         // it, so the layout is that of one run, whatever `parts` is.
-        let parts = crate::par::threads().clamp(1, ranges.len().div_ceil(1 << 14).max(1));
-        let run = ranges.len().div_ceil(parts);
+        let parts = crate::par::threads().clamp(1, boxes.len().div_ceil(1 << 14).max(1));
+        let run = boxes.len().div_ceil(parts);
         let runs: Vec<std::ops::Range<usize>> = (0..parts)
-            .map(|c| c * run..((c + 1) * run).min(ranges.len()))
+            .map(|c| c * run..((c + 1) * run).min(boxes.len()))
             .collect();
         let mut cursors: Vec<Vec<u32>> = Vec::new();
         crate::par::map_into(&mut cursors, parts, |c| {
             let mut count = vec![0u32; buckets];
-            for_each_cell(&ranges, runs[c].clone(), &include, |_, m, _| {
+            for_each_cell(range, runs[c].clone(), &include, |_, m, _| {
                 count[(m & mask) as usize] += 1;
             });
             count
@@ -139,7 +139,7 @@ impl Index {
         let items: Vec<AtomicU32> = (0..total).map(|_| AtomicU32::new(0)).collect();
         let flags: Vec<AtomicU8> = (0..total).map(|_| AtomicU8::new(0)).collect();
         crate::par::for_each_zip(cursors, runs, |_, mut cursor, r| {
-            for_each_cell(&ranges, r, &include, |t, m, f| {
+            for_each_cell(range, r, &include, |t, m, f| {
                 let k = &mut cursor[(m & mask) as usize];
                 let id = ids.map_or(t, |ids| ids[t as usize]);
                 items[*k as usize].store(id, Ordering::Relaxed);
@@ -149,6 +149,7 @@ impl Index {
         });
         let items: Vec<u32> = items.into_iter().map(AtomicU32::into_inner).collect();
         let flags: Vec<u8> = flags.into_iter().map(AtomicU8::into_inner).collect();
+        index.mask = mask;
         index.start = start;
         index.items = items;
         index.flags = flags;
@@ -356,15 +357,16 @@ pub(super) struct Scratch {
 /// cell's flags (bit `k`: the cell is the range's first along axis `k`).
 #[inline(never)]
 pub(super) fn for_each_cell(
-    ranges: &[[[u32; 3]; 2]],
+    range: impl Fn(usize) -> [[u32; 3]; 2],
     run: std::ops::Range<usize>,
     include: impl Fn(usize) -> bool,
     mut f: impl FnMut(u32, u64, u8),
 ) {
-    for (t, r) in ranges.iter().enumerate().take(run.end).skip(run.start) {
+    for t in run {
         if !include(t) {
             continue;
         }
+        let r = range(t);
         // Morton codes stepped in place: adding one to the bits of one axis.
         let step = |d: u64, axis: u32| {
             let m = DILATED << axis;
