@@ -170,7 +170,7 @@ impl Mesher {
         out.vertices.clear();
         out.triangles.clear();
         let inside = field::prepare(cells, grid, opts, &mut self.scratch.entries)?;
-        let inside = (inside, opts.min_component_cells);
+        let inside = (inside, Some(opts.min_component_cells));
         march::march(&mut self.scratch, grid, inside, opts.placement, out, keep);
         Ok(opts
             .smoothing

@@ -95,7 +95,7 @@ struct Bricks {
 }
 
 impl Bricks {
-    fn build(&mut self, entries: &[(UVec3, f32)], inside: Inside, min_piece: usize) {
+    fn build(&mut self, entries: &[(UVec3, f32)], inside: Inside, peel: Option<usize>) {
         let Self {
             map,
             keys,
@@ -142,7 +142,7 @@ impl Bricks {
                 get(m, keys, block);
             }
         }
-        if inside == Inside::NonPositive {
+        if let Some(min_piece) = peel.filter(|_| inside == Inside::NonPositive) {
             let floor = entries.iter().map(|e| e.0.y + SHIFT).min().unwrap_or(0);
             let mut field = Field { map, block, vals };
             peel_unobserved(&mut field, keys, floor, min_piece);
@@ -521,15 +521,15 @@ pub(crate) struct Scratch {
     edges: Vec<EdgeRows>,
 }
 
-/// Marches `scratch.entries` into `out` (cleared first). With [`Inside::NonPositive`], the
-/// unobserved cells in the dents of the observed surface are turned outside first, and the
-/// inside pieces of fewer than `min_piece` cells this cuts off dropped (see
-/// [`peel_unobserved`]). Without `keep`, each buffer is freed as soon as the passes that
+/// Marches `scratch.entries` into `out` (cleared first). With [`Inside::NonPositive`] and
+/// `peel = Some(min_piece)`, the unobserved cells in the dents of the observed surface are
+/// turned outside first, and the inside pieces of fewer than `min_piece` cells this cuts off
+/// dropped (see [`peel_unobserved`]); `None` marches the cells as they are. Without `keep`, each buffer is freed as soon as the passes that
 /// read it are done (lower peak memory for a one-shot mesher; `scratch` is then empty).
 pub(crate) fn march(
     scratch: &mut Scratch,
     grid: &GridSpec,
-    (inside, min_piece): (Inside, usize),
+    (inside, peel): (Inside, Option<usize>),
     placement: Placement,
     out: &mut Mesh,
     keep: bool,
@@ -541,7 +541,7 @@ pub(crate) fn march(
         slot,
         edges,
     } = scratch;
-    bricks.build(entries, inside, min_piece);
+    bricks.build(entries, inside, peel);
     if !keep {
         *entries = Vec::new();
         bricks.map = HashMap::new();
@@ -813,7 +813,7 @@ mod tests {
         march(
             scratch,
             grid,
-            inside,
+            (inside, None),
             Placement::SignedDistance,
             &mut mesh,
             keep,
