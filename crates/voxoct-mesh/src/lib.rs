@@ -188,7 +188,7 @@ pub const PIECES_PAST_TRIANGLES: usize = 1 << 22;
 /// Triangles of marched mesh that [`mesh_cells_simplified`] smooths and simplifies at once
 /// past [`PIECES_PAST_TRIANGLES`]: whole pieces are grouped up to this many (a larger piece
 /// is a group of its own).
-pub const PIECE_GROUP_TRIANGLES: usize = 1 << 19;
+pub const PIECE_GROUP_TRIANGLES: usize = 1 << 18;
 
 /// [`mesh_cells_certified`], then [`Mesh::remove_pieces_below_fraction`] and, with
 /// `simplify`, [`simplify()`] (the cells are freed once marched), with a peak memory that follows the largest piece rather than
