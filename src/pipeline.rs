@@ -549,14 +549,17 @@ fn mesh_tree(
         );
     }
     drop(filtered);
-    let (mut mesh, certified) = voxoct_mesh::mesh_cells_certified(&cells, &grid, &options)?;
-    drop(cells);
     // Removing whole pieces cannot make two triangles intersect; simplification refuses
-    // every collapse that would (its own exact check).
-    mesh.remove_pieces_below_fraction(params.min_piece_fraction);
-    if let Some(s) = &params.simplify {
-        voxoct_mesh::simplify(&mut mesh, &s.for_cell(grid.cell));
-    }
+    // every collapse that would (its own exact check). A large mesh is smoothed and
+    // simplified piece by piece, its peak memory that of the largest pieces.
+    let simplify = params.simplify.map(|s| s.for_cell(grid.cell));
+    let (mesh, certified) = voxoct_mesh::mesh_cells_simplified(
+        cells,
+        &grid,
+        &options,
+        params.min_piece_fraction,
+        simplify.as_ref(),
+    )?;
     Ok((mesh, certified))
 }
 

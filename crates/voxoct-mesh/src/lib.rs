@@ -124,7 +124,7 @@ pub fn mesh_cells_certified(
     opts: &MeshOptions,
 ) -> Result<(Mesh, bool), MeshError> {
     let mut mesh = Mesh::default();
-    let certified = Mesher::new().run(cells, grid, opts, &mut mesh, false)?;
+    let certified = Mesher::new().run(cells, grid, opts, &mut mesh, false, true)?;
     Ok((mesh, certified))
 }
 
@@ -153,12 +153,13 @@ impl Mesher {
         opts: &MeshOptions,
         out: &mut Mesh,
     ) -> Result<(), MeshError> {
-        self.run(cells, grid, opts, out, true).map(|_| ())
+        self.run(cells, grid, opts, out, true, true).map(|_| ())
     }
 
     /// Meshes into `out`; without `keep`, the working buffers are freed before smoothing
-    /// (lower peak memory for a one-shot mesher). Returns whether the smoothing proved the
-    /// mesh free of self-intersections ([`mesh_cells_certified`]).
+    /// (lower peak memory for a one-shot mesher); without `smooth`, the marched mesh is left
+    /// unsmoothed (the options are checked all the same). Returns whether the smoothing
+    /// proved the mesh free of self-intersections ([`mesh_cells_certified`]).
     fn run(
         &mut self,
         cells: &[Cell],
@@ -166,16 +167,193 @@ impl Mesher {
         opts: &MeshOptions,
         out: &mut Mesh,
         keep: bool,
+        smooth: bool,
     ) -> Result<bool, MeshError> {
         out.vertices.clear();
         out.triangles.clear();
         let inside = field::prepare(cells, grid, opts, &mut self.scratch.entries)?;
         let inside = (inside, Some(opts.min_component_cells));
         march::march(&mut self.scratch, grid, inside, opts.placement, out, keep);
-        Ok(opts
+        Ok(smooth
+            && opts
+                .smoothing
+                .as_ref()
+                .is_some_and(|t| smooth::taubin(out, t)))
+    }
+}
+
+/// Marched triangles past which [`mesh_cells_simplified`] smooths and simplifies the mesh
+/// piece by piece instead of whole.
+pub const PIECES_PAST_TRIANGLES: usize = 1 << 22;
+
+/// Triangles of marched mesh that [`mesh_cells_simplified`] smooths and simplifies at once
+/// past [`PIECES_PAST_TRIANGLES`]: whole pieces are grouped up to this many (a larger piece
+/// is a group of its own).
+pub const PIECE_GROUP_TRIANGLES: usize = 1 << 18;
+
+/// [`mesh_cells_certified`], then [`Mesh::remove_pieces_below_fraction`] and, with
+/// `simplify`, [`simplify()`] (the cells are freed once marched), with a peak memory that follows the largest piece rather than
+/// the whole mesh: the result is proven free of self-intersections when the returned flag
+/// is `true`, as [`mesh_cells_certified`]'s.
+///
+/// Up to [`PIECES_PAST_TRIANGLES`] marched triangles (or with a triangle target), exactly
+/// those three steps. Past it, the separate pieces of the marched mesh (a room's objects,
+/// walls and the bubbles in them) are smoothed, untangled and simplified in groups of whole
+/// pieces of about [`PIECE_GROUP_TRIANGLES`] triangles, and the joined result is checked
+/// exactly for self-intersections: pieces that came to cut through each other are
+/// processed again as one group (each such round merges groups, so this ends, at worst with
+/// one group: the whole mesh). Each piece comes out as it would from the whole mesh unless
+/// it met another one (smoothing and simplification are local to a piece); the pieces are
+/// in group order.
+///
+/// # Errors
+/// As [`mesh_cells`].
+pub fn mesh_cells_simplified(
+    cells: Vec<Cell>,
+    grid: &GridSpec,
+    opts: &MeshOptions,
+    min_piece_fraction: f32,
+    simplify: Option<&Simplify>,
+) -> Result<(Mesh, bool), MeshError> {
+    let mut mesh = Mesh::default();
+    Mesher::new().run(&cells, grid, opts, &mut mesh, false, false)?;
+    drop(cells);
+    let whole = mesh.triangles.len() <= PIECES_PAST_TRIANGLES
+        || simplify.is_some_and(|s| s.target_triangles.is_some());
+    if whole {
+        let certified = opts
             .smoothing
             .as_ref()
-            .is_some_and(|t| smooth::taubin(out, t)))
+            .is_some_and(|t| smooth::taubin(&mut mesh, t));
+        mesh.remove_pieces_below_fraction(min_piece_fraction);
+        if let Some(s) = simplify {
+            simplify::simplify(&mut mesh, s);
+        }
+        return Ok((mesh, certified));
+    }
+    mesh.remove_pieces_below_fraction(min_piece_fraction);
+    Ok(by_pieces(
+        &mesh,
+        opts.smoothing.as_ref(),
+        simplify,
+        PIECE_GROUP_TRIANGLES,
+    ))
+}
+
+/// The pieces path of [`mesh_cells_simplified`] on the marched mesh `raw`, in groups of
+/// whole pieces of about `group_triangles`.
+fn by_pieces(
+    raw: &Mesh,
+    smoothing: Option<&Taubin>,
+    simplify: Option<&Simplify>,
+    group_triangles: usize,
+) -> (Mesh, bool) {
+    let (roots, size) = raw.triangle_components();
+    // Groups of whole pieces (by root vertex), in root order.
+    let mut group = vec![u32::MAX; raw.vertices.len()];
+    let mut groups = 0u32;
+    let mut filled = 0usize;
+    for (r, &n) in size.iter().enumerate() {
+        if n == 0 {
+            continue;
+        }
+        if groups == 0 || filled + n > group_triangles {
+            groups += 1;
+            filled = 0;
+        }
+        group[r] = groups - 1;
+        filled += n;
+    }
+    drop(size);
+    let mut tri_group: Vec<u32> = roots.iter().map(|&r| group[r as usize]).collect();
+    drop((roots, group));
+    let mut done: Vec<Option<Mesh>> = (0..groups).map(|_| None).collect();
+    let mut map = vec![u32::MAX; raw.vertices.len()];
+    let mut used: Vec<u32> = Vec::new();
+    loop {
+        let mut count = vec![0usize; done.len()];
+        for &g in &tri_group {
+            count[g as usize] += 1;
+        }
+        for (g, slot) in done.iter_mut().enumerate() {
+            if slot.is_some() || count[g] == 0 {
+                continue;
+            }
+            let mut part = Mesh::default();
+            part.triangles.reserve_exact(count[g]);
+            used.clear();
+            for (t, _) in tri_group
+                .iter()
+                .enumerate()
+                .filter(|&(_, &x)| x == g as u32)
+            {
+                let tri = raw.triangles[t].map(|k| {
+                    let m = &mut map[k as usize];
+                    if *m == u32::MAX {
+                        *m = used.len() as u32;
+                        used.push(k);
+                    }
+                    *m
+                });
+                part.triangles.push(tri);
+            }
+            part.vertices = used.iter().map(|&k| raw.vertices[k as usize]).collect();
+            for &k in &used {
+                map[k as usize] = u32::MAX;
+            }
+            if let Some(t) = smoothing {
+                smooth::taubin(&mut part, t);
+            }
+            if let Some(s) = simplify {
+                simplify::simplify(&mut part, s);
+            }
+            // Only what is kept stays resident (the buffers were sized for the input).
+            part.vertices.shrink_to_fit();
+            part.triangles.shrink_to_fit();
+            *slot = Some(part);
+        }
+        // Joined in group order, with each triangle's group.
+        let mut out = Mesh::default();
+        let mut out_group = Vec::new();
+        for (g, part) in done.iter().enumerate() {
+            if let Some(part) = part {
+                let base = out.vertices.len() as u32;
+                out.vertices.extend_from_slice(&part.vertices);
+                out.triangles
+                    .extend(part.triangles.iter().map(|t| t.map(|k| k + base)));
+                out_group.extend(std::iter::repeat_n(g as u32, part.triangles.len()));
+            }
+        }
+        let bad = out.self_intersecting_triangles();
+        if bad.is_empty() {
+            return (out, true);
+        }
+        let mut flagged: Vec<u32> = bad.iter().map(|&t| out_group[t as usize]).collect();
+        flagged.sort_unstable();
+        flagged.dedup();
+        if flagged.len() < 2 {
+            if done.iter().filter(|d| d.is_some()).count() < 2 {
+                // One group (the whole mesh) that still cuts through itself: cannot happen
+                // for a marched mesh (smoothing is undone rather than left tangled, and
+                // simplification introduces none); returned unproven.
+                return (out, false);
+            }
+            // A group that cuts through itself (never seen): all pieces as one group.
+            flagged = (0..groups)
+                .filter(|&g| done[g as usize].is_some())
+                .collect();
+        }
+        drop(out);
+        // The flagged groups become one, processed again.
+        let into = flagged[0];
+        for &g in &flagged {
+            done[g as usize] = None;
+        }
+        for x in &mut tri_group {
+            if flagged.binary_search(x).is_ok() {
+                *x = into;
+            }
+        }
     }
 }
 
@@ -200,4 +378,57 @@ pub fn mesh_octree_at_depth(
 ) -> Result<Mesh, MeshError> {
     let depth = depth.min(octree.depth());
     mesh_cells(&octree.cells_at_depth(depth), &octree.grid(depth), opts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{UVec3, Vec3};
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+
+        /// Piece by piece in small groups (so that pieces of different groups meet after
+        /// smoothing and are merged): a valid solid with the pieces of the whole path,
+        /// proven free of self-intersections.
+        #[test]
+        fn pieces_in_groups_give_a_valid_solid(
+            blobs in prop::collection::vec((0u32..20, 0u32..20, 0u32..20, 1u32..4), 2..12),
+            specks in prop::collection::vec((0u32..24, 0u32..24, 0u32..24, -0.9f32..0.9), 0..60),
+            group in 1usize..400,
+            simplified in any::<bool>(),
+        ) {
+            let grid = GridSpec { origin: Vec3::new(-0.3, 0.1, 2.0), cell: 0.001, resolution: 32 };
+            let mut cells = Vec::new();
+            for (cx, cy, cz, r) in blobs {
+                let r = r as i32;
+                for z in -r..=r {
+                    for y in -r..=r {
+                        for x in -r..=r {
+                            let d2 = x * x + y * y + z * z;
+                            let p = [cx as i32 + x, cy as i32 + y, cz as i32 + z];
+                            if d2 <= r * r && d2 > (r - 1) * (r - 1) && p.iter().all(|&v| v >= 0) {
+                                let coord = UVec3::new(p[0] as u32, p[1] as u32, p[2] as u32);
+                                cells.push(Cell { coord, hits: 1, sdf_sum: 0.0 });
+                            }
+                        }
+                    }
+                }
+            }
+            for (x, y, z, s) in specks {
+                cells.push(Cell { coord: UVec3::new(x, y, z), hits: 1, sdf_sum: s * 0.001 });
+            }
+            let opts = MeshOptions { solid: false, ..MeshOptions::smooth() };
+            let mut raw = Mesh::default();
+            Mesher::new().run(&cells, &grid, &opts, &mut raw, false, false).unwrap();
+            prop_assume!(!raw.triangles.is_empty());
+            let s = Simplify::for_leaf(grid.cell);
+            let simplify = simplified.then_some(&s);
+            let (mesh, certified) = by_pieces(&raw, opts.smoothing.as_ref(), simplify, group);
+            prop_assert!(certified);
+            mesh.check_valid_solid().map_err(|e| TestCaseError::fail(e.to_string()))?;
+            prop_assert_eq!(mesh.stats().components, raw.stats().components);
+        }
+    }
 }

@@ -433,7 +433,7 @@ impl Mesh {
     }
 
     /// For each triangle its piece's root vertex, and for each root the piece's triangles.
-    fn triangle_components(&self) -> (Vec<u32>, Vec<usize>) {
+    pub(crate) fn triangle_components(&self) -> (Vec<u32>, Vec<usize>) {
         let roots = par::triangle_roots(self.vertices.len(), &self.triangles);
         let mut size = vec![0usize; self.vertices.len()];
         for &r in &roots {
