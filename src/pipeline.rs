@@ -316,8 +316,9 @@ pub struct Reconstruction {
     /// [`disagreement_explained_m`].
     pub disagreement_m: Option<f32>,
     /// Whether the mesh stage proved the mesh free of self-intersections
-    /// ([`voxoct_mesh::mesh_cells_certified`]: the smoothing's untangling ran the exact test
-    /// over every triangle; dropping small pieces and simplifying keep it). `false`: not
+    /// ([`voxoct_mesh::mesh_cells_simplified`]: the smoothing's untangling ran the exact test
+    /// over every triangle and dropping small pieces and simplifying keep it, or, for a mesh
+    /// done piece by piece, the exact test ran over the joined result). `false`: not
     /// checked — run [`Mesh::self_intersecting_triangles`].
     pub self_intersection_free: bool,
 }
