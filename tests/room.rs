@@ -10,26 +10,9 @@ use voxoct::depth::ScannerConfig;
 use voxoct::kinect::{DepthSource, FakenectSource};
 use voxoct::pipeline::{Params, SnapshotFrames, reconstruct};
 
-/// The room's scanner settings: the NYU toolbox's intrinsics (as `.ci/live_scan.sh` uses),
-/// the sensor at the origin looking down −z, no tilt.
-const ROOM: &str = r"
-[sensor]
-width = 640
-height = 480
-fx = 582.62
-fy = 582.69
-cx = 313.04
-cy = 238.44
-depth_unit_m = 0.001
-
-[rig]
-tilt_deg = 0.0
-sensor_position_m = [0.0, 0.0, 0.0]
-
-[clip]
-min_m = [-3.0, -3.0, -5.0]
-max_m = [3.0, 3.0, -0.4]
-";
+/// The room's scanner settings (the NYU toolbox's intrinsics, the sensor at the origin
+/// looking down −z, no tilt): the one file `.ci/live_scan.sh` and the figures also read.
+const ROOM: &str = include_str!("../examples/nyu-room.toml");
 
 /// The tests run one at a time: the peak they check is the process's.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
@@ -44,7 +27,7 @@ fn room_in_bounded_memory(leaf_m: f32, root_m: f32, min_triangles: usize) {
         env!("CARGO_MANIFEST_DIR"),
         "/../shared/data/nyu-kinect-fakenect"
     );
-    let config = ScannerConfig::from_toml_str(ROOM, "room.toml".as_ref()).unwrap();
+    let config = ScannerConfig::from_toml_str(ROOM, "examples/nyu-room.toml".as_ref()).unwrap();
     let mut source = FakenectSource::open(dir)
         .and_then(|s| s.with_intrinsics(config.sensor.intrinsics))
         .unwrap();
