@@ -2,8 +2,8 @@
 //! saw as empty stays empty, the rest is closed by the smallest surface, and the mesh is
 //! closed either way.
 
-use voxoct::core::Triangle;
 use voxoct::core::glam::Vec3;
+use voxoct::core::{Aabb, Triangle};
 use voxoct::depth::ScannerConfig;
 use voxoct::kinect::{Model, SimConfig, SimulatedKinect};
 use voxoct::mesh::MeshOptions;
@@ -77,31 +77,7 @@ fn a_box_stands_on_the_platform() {
 
 /// An axis-aligned box from `lo` to `hi` as 12 outward-facing triangles.
 fn cuboid(lo: Vec3, hi: Vec3) -> Vec<Triangle> {
-    let c = |i: usize| {
-        Vec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        )
-    };
-    // Faces as corner quads, counter-clockwise seen from outside.
-    let quads = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
-    quads
-        .iter()
-        .flat_map(|q| {
-            [
-                Triangle::new(c(q[0]), c(q[1]), c(q[2])),
-                Triangle::new(c(q[0]), c(q[2]), c(q[3])),
-            ]
-        })
-        .collect()
+    Aabb::new(lo, hi).surface_triangles().to_vec()
 }
 
 /// A cup no view sees the bottom of: 78 mm wide inside, 92 mm deep; from 20° above, the

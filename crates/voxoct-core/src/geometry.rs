@@ -46,6 +46,53 @@ impl Aabb {
         (self.max - self.min) * 0.5
     }
 
+    /// The box's surface as 12 triangles, two per face, counter-clockwise seen from outside
+    /// (their normals point out of the box): a closed, outward-oriented mesh of it, e.g. to
+    /// insert a box into an [`crate::Octree`] or to simulate one.
+    ///
+    /// ```
+    /// use voxoct_core::Aabb;
+    /// use voxoct_core::glam::Vec3;
+    ///
+    /// let b = Aabb::new(Vec3::ZERO, Vec3::new(2.0, 3.0, 4.0));
+    /// let tris = b.surface_triangles();
+    /// let twice_area = |t: &voxoct_core::Triangle| (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]);
+    /// let area: f32 = tris.iter().map(|t| twice_area(t).length() / 2.0).sum();
+    /// assert!((area - 2.0 * (6.0 + 8.0 + 12.0)).abs() < 1e-4);
+    /// for t in &tris {
+    ///     let centroid = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
+    ///     assert!(twice_area(t).dot(centroid - b.center()) > 0.0, "{t:?} faces inwards");
+    /// }
+    /// ```
+    #[must_use]
+    pub fn surface_triangles(&self) -> [Triangle; 12] {
+        let (lo, hi) = (self.min, self.max);
+        let c = |i: usize| {
+            Vec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        };
+        // Each face as a quad of corners, counter-clockwise seen from outside.
+        const QUADS: [[usize; 4]; 6] = [
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+        ];
+        std::array::from_fn(|k| {
+            let q = QUADS[k / 2];
+            if k % 2 == 0 {
+                Triangle::new(c(q[0]), c(q[1]), c(q[2]))
+            } else {
+                Triangle::new(c(q[0]), c(q[2]), c(q[3]))
+            }
+        })
+    }
+
     /// Whether the closed box contains `p`.
     #[inline]
     #[must_use]

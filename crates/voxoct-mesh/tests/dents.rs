@@ -3,36 +3,12 @@
 //! that layer and move the surface out by a cell.
 
 use voxoct_core::glam::Vec3;
-use voxoct_core::{Octree, Triangle};
+use voxoct_core::{Aabb, Octree, Triangle};
 use voxoct_mesh::{MeshOptions, mesh_octree};
 
 /// An axis-aligned box from `lo` to `hi` as 12 outward-facing triangles.
 fn cuboid(lo: Vec3, hi: Vec3) -> Vec<Triangle> {
-    let c = |i: usize| {
-        Vec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        )
-    };
-    // Faces as corner quads, counter-clockwise seen from outside.
-    let quads = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
-    quads
-        .iter()
-        .flat_map(|q| {
-            [
-                Triangle::new(c(q[0]), c(q[1]), c(q[2])),
-                Triangle::new(c(q[0]), c(q[2]), c(q[3])),
-            ]
-        })
-        .collect()
+    Aabb::new(lo, hi).surface_triangles().to_vec()
 }
 
 /// A box (with a slit in one side) whose top face (y = 40.7 mm, in the layer of cells
