@@ -132,13 +132,13 @@ pub(crate) fn prepare(
         // Filling and the signed distance can leave specks of inside apart from the body.
         let specks = (opts.solid && opts.min_component_cells > 1)
             .then_some((opts.min_component_cells, inside));
-        fill_enclosed(
-            out,
-            floor_layer,
-            opts.close_gaps,
-            opts.min_component_cells,
+        let rule = FillRule {
+            floor: floor_layer,
+            max_gap: opts.close_gaps,
+            min_component: opts.min_component_cells,
             specks,
-        )?;
+        };
+        fill_enclosed(out, &rule)?;
     } else if opts.min_component_cells > 1 {
         remove_small_components(out, opts.min_component_cells, |_| true);
     }
@@ -255,6 +255,20 @@ fn enclosed(marked: &BitBox, closed_bottom: bool, gap: u32) -> BitBox {
     outside
 }
 
+/// What [`fill_enclosed`] fills and drops (the same for its dense and its tiled path).
+#[derive(Debug, Clone, Copy)]
+struct FillRule {
+    /// The floor layer the outside cannot enter from below, if any.
+    floor: Option<u32>,
+    /// The widest gap closing tried.
+    max_gap: u32,
+    /// Connected groups of marked cells smaller than this are dropped first.
+    min_component: usize,
+    /// `Some((min, inside))`: connected groups of inside cells smaller than `min` are
+    /// dropped at the end.
+    specks: Option<(usize, Inside)>,
+}
+
 /// Adds the enclosed cells as `-inf` (see [`enclosed`]), closing gaps only as far as needed:
 /// with the widest closing `max_gap` as reference, the smallest closing whose enclosed space
 /// is at least half of that is used. A shell that is already closed keeps its concavities (no
@@ -267,19 +281,13 @@ fn enclosed(marked: &BitBox, closed_bottom: bool, gap: u32) -> BitBox {
 ///
 /// # Errors
 /// [`MeshError::FillTooLarge`] only past [`TILE_GRID_LIMIT`] tiles.
-fn fill_enclosed(
-    cells: &mut Vec<(UVec3, f32)>,
-    floor: Option<u32>,
-    max_gap: u32,
-    min_component: usize,
-    specks: Option<(usize, Inside)>,
-) -> Result<(), MeshError> {
-    let (lo, n) = fill_box(cells, floor, max_gap);
+fn fill_enclosed(cells: &mut Vec<(UVec3, f32)>, rule: &FillRule) -> Result<(), MeshError> {
+    let (lo, n) = fill_box(cells, rule.floor, rule.max_gap);
     let total = n.iter().map(|&d| d as u64).product::<u64>();
     if total > FILL_LIMIT {
-        fill_enclosed_tiled(cells, (lo, n), floor, max_gap, min_component, specks)
+        fill_enclosed_tiled(cells, (lo, n), rule)
     } else {
-        fill_enclosed_dense(cells, (lo, n), floor, max_gap, min_component, specks);
+        fill_enclosed_dense(cells, (lo, n), rule);
         Ok(())
     }
 }
@@ -288,10 +296,12 @@ fn fill_enclosed(
 fn fill_enclosed_dense(
     cells: &mut Vec<(UVec3, f32)>,
     (lo, n): (IVec3, [usize; 3]),
-    floor: Option<u32>,
-    max_gap: u32,
-    min_component: usize,
-    specks: Option<(usize, Inside)>,
+    &FillRule {
+        floor,
+        max_gap,
+        min_component,
+        specks,
+    }: &FillRule,
 ) {
     let values = BoxValues::new(cells, lo, n);
     let mut marked = values.marked.clone();
@@ -320,10 +330,12 @@ fn fill_enclosed_dense(
 fn fill_enclosed_tiled(
     cells: &mut Vec<(UVec3, f32)>,
     (lo, n): (IVec3, [usize; 3]),
-    floor: Option<u32>,
-    max_gap: u32,
-    min_component: usize,
-    specks: Option<(usize, Inside)>,
+    &FillRule {
+        floor,
+        max_gap,
+        min_component,
+        specks,
+    }: &FillRule,
 ) -> Result<(), MeshError> {
     let origin = lo + IVec3::ONE;
     let t = [
@@ -625,12 +637,23 @@ mod tests {
 
     /// Both fills on `cells`; asserts they agree and returns the count of enclosed cells.
     fn both(cells: &[(UVec3, f32)], floor: Option<u32>, gap: u32, min: usize) -> usize {
-        let boxed = fill_box(cells, floor, gap);
-        let specks = Some((min, Inside::NonPositive));
+        let rule = FillRule {
+            floor,
+            max_gap: gap,
+            min_component: min,
+            specks: Some((min, Inside::NonPositive)),
+        };
+        both_with(cells, &rule)
+    }
+
+    /// Both fills on `cells` with `rule`; asserts they give the same cells, values and order,
+    /// and returns the count of enclosed cells.
+    fn both_with(cells: &[(UVec3, f32)], rule: &FillRule) -> usize {
+        let boxed = fill_box(cells, rule.floor, rule.max_gap);
         let mut dense = cells.to_vec();
-        fill_enclosed_dense(&mut dense, boxed, floor, gap, min, specks);
+        fill_enclosed_dense(&mut dense, boxed, rule);
         let mut tiles = cells.to_vec();
-        fill_enclosed_tiled(&mut tiles, boxed, floor, gap, min, specks).unwrap();
+        fill_enclosed_tiled(&mut tiles, boxed, rule).unwrap();
         assert_eq!(dense.len(), tiles.len());
         assert!(
             dense
@@ -687,16 +710,7 @@ mod tests {
             let specks = specks.map(|(m, k)| {
                 (m, [Inside::Marked, Inside::NotExterior, Inside::NonPositive][k as usize])
             });
-            let boxed = fill_box(&cells, floor, gap);
-            let mut dense = cells.clone();
-            fill_enclosed_dense(&mut dense, boxed, floor, gap, min_component, specks);
-            let mut tiles = cells;
-            fill_enclosed_tiled(&mut tiles, boxed, floor, gap, min_component, specks).unwrap();
-            prop_assert_eq!(dense.len(), tiles.len());
-            for (a, b) in dense.iter().zip(&tiles) {
-                prop_assert_eq!(a.0, b.0);
-                prop_assert_eq!(a.1.to_bits(), b.1.to_bits());
-            }
+            both_with(&cells, &FillRule { floor, max_gap: gap, min_component, specks });
         }
     }
 }
