@@ -20,28 +20,20 @@ fn assert_fails(args: &[&str], needle: &str) {
 #[test]
 fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
     let dir = tempfile::tempdir().unwrap();
-    let out = scan(
-        &[
-            "--builtin",
-            "sphere",
-            "--snapshots",
-            "4",
-            "--frames",
-            "1",
-            "--leaf",
-            "0.003",
-            "--stats",
-            "s.json",
-            "--preview",
-            "p.png",
-            "--out",
-            "s.stl",
-            "--record-to",
-            "rec",
-            "-q",
-        ],
-        dir.path(),
-    );
+    let flags = [
+        "--builtin",
+        "sphere",
+        "--stats",
+        "s.json",
+        "--preview",
+        "p.png",
+        "--out",
+        "s.stl",
+        "--record-to",
+        "rec",
+        "-q",
+    ];
+    let out = scan(&[&common::SMALL_SCAN[..], &flags].concat(), dir.path());
     assert!(
         out.status.success(),
         "{}",
@@ -118,25 +110,16 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
 /// The mesh triangles and validity a small simulated scan reports with `extra` flags.
 fn sphere_stats(extra: &[&str]) -> (u64, bool, u64) {
     let dir = tempfile::tempdir().unwrap();
-    let args = [
-        &[
-            "--builtin",
-            "sphere",
-            "--snapshots",
-            "4",
-            "--frames",
-            "1",
-            "--leaf",
-            "0.003",
-            "--stats",
-            "s.json",
-            "--out",
-            "s.stl",
-            "-q",
-        ][..],
-        extra,
-    ]
-    .concat();
+    let flags = [
+        "--builtin",
+        "sphere",
+        "--stats",
+        "s.json",
+        "--out",
+        "s.stl",
+        "-q",
+    ];
+    let args = [&common::SMALL_SCAN[..], &flags, extra].concat();
     let out = scan(&args, dir.path());
     assert!(
         out.status.success(),

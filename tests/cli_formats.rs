@@ -13,7 +13,7 @@ fn scan(args: &[&str], cwd: &Path) -> Output {
     common::run_example("scan", args, cwd)
 }
 
-const SMALL: [&str; 6] = ["--snapshots", "4", "--frames", "1", "--leaf", "0.003"];
+use common::SMALL_SCAN as SMALL;
 
 fn read(path: &Path) -> Mesh {
     let m = voxoct::stl::read_mesh_file(path).unwrap();

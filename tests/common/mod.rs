@@ -55,6 +55,10 @@ pub fn example_bin(name: &str) -> PathBuf {
     bin
 }
 
+/// A quick simulated scan's flags: 4 snapshots of 1 frame, 3 mm leaves.
+#[allow(dead_code)] // not every test crate that includes this module scans
+pub const SMALL_SCAN: [&str; 6] = ["--snapshots", "4", "--frames", "1", "--leaf", "0.003"];
+
 /// Runs the example `name` ([`example_bin`]) with `args` in `cwd`, without a turntable
 /// token from the environment.
 pub fn run_example(name: &str, args: &[&str], cwd: &Path) -> Output {
