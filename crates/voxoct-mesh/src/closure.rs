@@ -126,18 +126,25 @@ pub fn close_cells(
     let inside = close_coarse(dims, &known, &cost);
     // Unknown cells the cut put inside, and those sealed behind a surface (`inside` is false
     // for empty and excluded cells).
-    let added = |(i, _): (usize, &Known)| inside[i] && !marked[i];
+    let added: Vec<bool> = inside.iter().zip(&marked).map(|(&a, &m)| a && !m).collect();
+    drop((inside, marked, known));
     let mut cells = cells;
-    cells.reserve_exact(known.iter().enumerate().filter(|&x| added(x)).count());
-    for (i, k) in known.iter().enumerate() {
-        if added((i, k)) {
-            let i = i as u32;
-            let coord = lo + UVec3::new(i % dim.x, i / dim.x % dim.y, i / (dim.x * dim.y));
-            cells.push(Cell {
-                coord,
-                hits: CLOSED_HITS,
-                sdf_sum: CLOSED_SDF,
-            });
+    cells.reserve_exact(added.iter().filter(|&&a| a).count());
+    let mut i = 0;
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for (dx, _) in added[i..i + dims[0]]
+                .iter()
+                .enumerate()
+                .filter(|&(_, &a)| a)
+            {
+                cells.push(Cell {
+                    coord: UVec3::new(lo.x + dx as u32, y, z),
+                    hits: CLOSED_HITS,
+                    sdf_sum: CLOSED_SDF,
+                });
+            }
+            i += dims[0];
         }
     }
     cells
@@ -189,14 +196,26 @@ fn face_costs(dims: [usize; 3], marked: &[bool], prior_cells: f32) -> Vec<u8> {
         return vec![UNIT_FACE_COST; n];
     }
     let unit = f32::from(UNIT_FACE_COST);
+    let price = |d: u16| {
+        let d = f32::from(d) / f32::from(CHAMFER_FACE);
+        (unit * (1.0 + d / prior_cells))
+            .round()
+            .min(f32::from(MAX_FACE_COST)) as u8
+    };
+    // The prices of the distances below the first one that costs the most (the price grows
+    // with the distance), each computed as above; every greater distance costs the most.
+    let mut table: Vec<u8> = Vec::new();
+    for d in 0..=u16::MAX {
+        let p = price(d);
+        table.push(p);
+        if p == MAX_FACE_COST {
+            break;
+        }
+    }
+    let last = table.len() - 1;
     let dist = chamfer_distance(dims, marked);
     dist.iter()
-        .map(|&d| {
-            let d = f32::from(d) / f32::from(CHAMFER_FACE);
-            (unit * (1.0 + d / prior_cells))
-                .round()
-                .min(f32::from(MAX_FACE_COST)) as u8
-        })
+        .map(|&d| table[usize::from(d).min(last)])
         .collect()
 }
 
@@ -248,17 +267,21 @@ fn chamfer_distance(dims: [usize; 3], marked: &[bool]) -> Vec<u16> {
                     (yp, z, face, edge),
                 ] {
                     let src = &d[at(0, ny_, nz_)..at(0, ny_, nz_) + px];
-                    for x in 1..=nx {
-                        let m = src[x]
+                    // Three views of the row shifted by one cell, all `nx` long: the loop
+                    // has no bounds checks and vectorises.
+                    let (left, mid, right) = (&src[..nx], &src[1..=nx], &src[2..nx + 2]);
+                    for (((b, &l), &m), &r) in best[1..=nx].iter_mut().zip(left).zip(mid).zip(right)
+                    {
+                        let m = m
                             .saturating_add(w_mid)
-                            .min(src[x - 1].saturating_add(w_side))
-                            .min(src[x + 1].saturating_add(w_side));
-                        best[x] = best[x].min(m);
+                            .min(l.saturating_add(w_side))
+                            .min(r.saturating_add(w_side));
+                        *b = (*b).min(m);
                     }
                 }
                 let row = &mut d[at(0, y, z)..at(0, y, z) + px];
-                for x in 1..=nx {
-                    row[x] = row[x].min(best[x]);
+                for (r, &b) in row[1..=nx].iter_mut().zip(&best[1..=nx]) {
+                    *r = (*r).min(b);
                 }
                 if forward {
                     for x in 1..=nx {
@@ -387,32 +410,7 @@ fn close_coarse(dims: [usize; 3], known: &[Known], cost: &[u8]) -> Vec<bool> {
         .collect();
     let coarse_inside = close_unknown_weighted(cd, &coarse, &coarse_cost);
     // Blocks whose 3 × 3 × 3 neighbourhood is all on their side (beyond the box: outside).
-    let uniform: Vec<bool> = (0..coarse_inside.len())
-        .map(|b| {
-            let (x, y, z) = (b % cd[0], b / cd[0] % cd[1], b / (cd[0] * cd[1]));
-            let side = coarse_inside[b];
-            for dz in -1i64..=1 {
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let (nx, ny, nz) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
-                        let outside_box = nx < 0
-                            || ny < 0
-                            || nz < 0
-                            || nx >= cd[0] as i64
-                            || ny >= cd[1] as i64
-                            || nz >= cd[2] as i64;
-                        let other = !outside_box
-                            && coarse_inside
-                                [(nz as usize * cd[1] + ny as usize) * cd[0] + nx as usize];
-                        if other != side {
-                            return false;
-                        }
-                    }
-                }
-            }
-            true
-        })
-        .collect();
+    let uniform = uniform_blocks(cd, &coarse_inside);
     // The fine problem in a band around the coarse cut: unknown cells of uniform blocks take
     // their block's side; the rest are decided again, cell by cell.
     let mut fine = Vec::with_capacity(known.len());
@@ -435,6 +433,39 @@ fn close_coarse(dims: [usize; 3], known: &[Known], cost: &[u8]) -> Vec<bool> {
         }
     }
     close_unknown_weighted(dims, &fine, cost)
+}
+
+/// For each cell of a box of `dims` cells (x fastest), whether its 3 × 3 × 3 neighbourhood
+/// is all on its side of `inside` (cells beyond the box are outside): the neighbourhood's
+/// minimum and maximum, each taken one axis at a time.
+fn uniform_blocks(dims: [usize; 3], inside: &[bool]) -> Vec<bool> {
+    let strides = [1, dims[0], dims[0] * dims[1]];
+    // `any[i]`: some neighbour is inside; `all[i]`: every neighbour is (inside the box).
+    let mut any: Vec<bool> = inside.to_vec();
+    let mut all: Vec<bool> = inside.to_vec();
+    for (axis, &stride) in strides.iter().enumerate() {
+        let len = dims[axis];
+        let (prev_any, prev_all) = (any.clone(), all.clone());
+        for i in 0..inside.len() {
+            let c = i / stride % len;
+            let below = (c > 0).then(|| i - stride);
+            let above = (c + 1 < len).then(|| i + stride);
+            for j in [below, above] {
+                match j {
+                    Some(j) => {
+                        any[i] |= prev_any[j];
+                        all[i] &= prev_all[j];
+                    }
+                    None => all[i] = false,
+                }
+            }
+        }
+    }
+    inside
+        .iter()
+        .zip(any.iter().zip(&all))
+        .map(|(&side, (&any, &all))| if side { all } else { !any })
+        .collect()
 }
 
 /// The residual graph over the unknown cells and the two search trees.
@@ -1007,6 +1038,57 @@ mod tests {
                 best,
                 "{known:?} {w:?}"
             );
+        }
+    }
+
+    /// The separable neighbourhood test agrees with visiting all 27 neighbours of every
+    /// cell, on random boxes (cells beyond the box outside).
+    #[test]
+    fn uniform_blocks_match_the_27_neighbour_definition() {
+        let mut next = xorshift(0x51f1_5eed_0bad_cafe);
+        for round in 0..200 {
+            let dims = [1 + round % 5, 1 + round / 5 % 4, 1 + round / 20 % 6];
+            let n = dims[0] * dims[1] * dims[2];
+            // Mostly one side, so that uniform cells occur.
+            let bias = next() % 4;
+            let inside: Vec<bool> = (0..n).map(|_| next() % 16 >= bias).collect();
+            let got = uniform_blocks(dims, &inside);
+            for z in 0..dims[2] {
+                for y in 0..dims[1] {
+                    for x in 0..dims[0] {
+                        let side = inside[idx(dims, x, y, z)];
+                        let mut want = true;
+                        for (dx, dy, dz) in (0..27).map(|k| (k % 3, k / 3 % 3, k / 9)) {
+                            let (a, b, c) = (x + dx, y + dy, z + dz);
+                            let other = (1..=dims[0]).contains(&a)
+                                && (1..=dims[1]).contains(&b)
+                                && (1..=dims[2]).contains(&c)
+                                && inside[idx(dims, a - 1, b - 1, c - 1)];
+                            want &= other == side;
+                        }
+                        assert_eq!(got[idx(dims, x, y, z)], want, "{dims:?} {x} {y} {z}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The price table gives every distance the price of the formula it tabulates.
+    #[test]
+    fn face_prices_follow_the_distance() {
+        let dims = [40, 3, 2];
+        let mut marked = vec![false; 240];
+        marked[0] = true;
+        let dist = chamfer_distance(dims, &marked);
+        for prior in [0.3f32, 1.0, 3.7, 50.0] {
+            let cost = face_costs(dims, &marked, prior);
+            for (&d, &c) in dist.iter().zip(&cost) {
+                let d = f32::from(d) / f32::from(CHAMFER_FACE);
+                let want = (f32::from(UNIT_FACE_COST) * (1.0 + d / prior))
+                    .round()
+                    .min(f32::from(MAX_FACE_COST)) as u8;
+                assert_eq!(c, want, "prior {prior}, distance {d}");
+            }
         }
     }
 
