@@ -93,9 +93,11 @@ name, path = sys.argv[1], sys.argv[2]
 d = json.load(open(path))
 s = d["seconds"]
 ms = lambda k: "%.0f" % (1000 * s.get(k, 0.0))
-print("| %s | %.2f | %d | %d | %s | %s | %s | %s | %s | %s | %.0f |" % (
+m = s.get("mesh_steps", {})
+steps = "/".join("%.0f" % (1000 * m.get(k, 0.0)) for k in ("closure", "march", "smooth", "simplify"))
+print("| %s | %.2f | %d | %d | %s | %s | %s | %s | %s | %s | %s | %.0f |" % (
     name, d["leaf_size_m"] * 1000, d["leaves"], d["mesh_triangles"], ms("load"), ms("filter"),
-    ms("insert"), ms("mesh"), ms("write"), ms("total"), d["peak_rss_bytes"] / 2**20))
+    ms("insert"), ms("mesh"), steps, ms("write"), ms("total"), d["peak_rss_bytes"] / 2**20))
 EOF
 }
 : > "$out/pipeline.md"
@@ -106,9 +108,11 @@ if want pipeline; then
     stamp
     echo "\`target/release/examples/scan --stats\` (release build, default options, the file written"
     echo "as STL): leaf size, marked leaves, output triangles, milliseconds per stage, peak memory."
+    echo "The mesh stage's steps (\`seconds.mesh_steps\`): closing what no view saw, marching,"
+    echo "smoothing with the untangling that proves the mesh free of self-intersections, simplification."
     echo
-    echo "| run | leaf mm | leaves | triangles | load | filter | insert | mesh | write | total | peak MiB |"
-    echo "|---|---|---|---|---|---|---|---|---|---|---|"
+    echo "| run | leaf mm | leaves | triangles | load | filter | insert | mesh | closure/march/smooth/simplify | write | total | peak MiB |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
     "$bin" -q --out "$out/sim.stl" --stats "$out/sim.json"
     stats_row "built-in simulated scan (\`scan\`, no flags)" "$out/sim.json"
     if [ -d "$data" ]; then

@@ -295,8 +295,19 @@ pub struct Timings {
     pub triangulate: Duration,
     /// [`Stage::Insert`].
     pub insert: Duration,
-    /// [`Stage::Mesh`].
+    /// [`Stage::Mesh`]: the closure, march, smoothing and simplification below, and the
+    /// rest (reading the octree's cells).
     pub mesh: Duration,
+    /// Part of `mesh`: closing what no view saw ([`Params::carve`]), with the views'
+    /// verdicts on every cell of its box.
+    pub closure: Duration,
+    /// Part of `mesh`: [`voxoct_mesh::StepTimes::march`].
+    pub march: Duration,
+    /// Part of `mesh`: [`voxoct_mesh::StepTimes::smooth`] (smoothing and the untangling
+    /// that proves the mesh free of self-intersections).
+    pub smooth: Duration,
+    /// Part of `mesh`: [`voxoct_mesh::StepTimes::simplify`].
+    pub simplify: Duration,
 }
 
 /// What a reconstruction produced.
@@ -414,7 +425,8 @@ pub fn reconstruct(
 
     on_stage(Stage::Mesh);
     let t = Instant::now();
-    let (mesh, self_intersection_free) = mesh_tree(config, params, &tree, filtered, &angles)?;
+    let (mesh, self_intersection_free) =
+        mesh_tree(config, params, &tree, filtered, &angles, &mut timings)?;
     timings.mesh = t.elapsed();
 
     Ok(Reconstruction {
@@ -525,19 +537,22 @@ fn build_octree(
 }
 
 /// Stage 4: the marked leaves (at `lod` levels coarser) meshed; in solid mode what no
-/// frame saw is closed first ([`Params::carve`]); small pieces dropped, then simplified.
+/// frame saw is closed first ([`Params::carve`]); small pieces dropped, then simplified. The
+/// steps' times go into `timings`.
 fn mesh_tree(
     config: &ScannerConfig,
     params: &Params,
     tree: &Octree,
     filtered: Vec<DepthFrame>,
     angles: &[f32],
+    timings: &mut Timings,
 ) -> Result<(Mesh, bool), PipelineError> {
     // `Params::validate` refused a `lod` beyond the depth of this root and leaf.
     let depth = tree.depth() - params.lod;
     let options = mesh_options(config, params);
     let grid = tree.grid(depth);
     let mut cells = tree.cells_at_depth(depth);
+    let t = Instant::now();
     if params.carve && options.solid {
         let views = (filtered.as_slice(), angles);
         cells = close_unseen_in_budget(
@@ -550,18 +565,22 @@ fn mesh_tree(
         );
     }
     drop(filtered);
+    timings.closure = t.elapsed();
     // Removing whole pieces cannot make two triangles intersect; simplification refuses
     // every collapse that would (its own exact check). A large mesh is smoothed and
     // simplified piece by piece, its peak memory that of the largest pieces.
     let simplify = params.simplify.map(|s| s.for_cell(grid.cell));
-    let (mesh, certified) = voxoct_mesh::mesh_cells_simplified(
+    let out = voxoct_mesh::mesh_cells_simplified(
         cells,
         &grid,
         &options,
         params.min_piece_fraction,
         simplify.as_ref(),
     )?;
-    Ok((mesh, certified))
+    timings.march = out.times.march;
+    timings.smooth = out.times.smooth;
+    timings.simplify = out.times.simplify;
+    Ok((out.mesh, out.certified))
 }
 
 /// The meshing options of `params` for a scan with `config`: in solid mode with

@@ -68,6 +68,17 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
             "stats lack seconds.{key}"
         );
     }
+    // The mesh stage's steps are parts of it.
+    let steps = ["closure", "march", "smooth", "simplify"].map(|key| {
+        stats["seconds"]["mesh_steps"][key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("stats lack seconds.mesh_steps.{key}"))
+    });
+    let mesh = stats["seconds"]["mesh"].as_f64().unwrap();
+    assert!(
+        steps.iter().all(|&t| t >= 0.0) && steps.iter().sum::<f64>() <= mesh,
+        "mesh steps {steps:?} vs mesh {mesh}"
+    );
     assert_eq!(stats["closed_manifold"], true);
     assert_eq!(stats["snapshots"], 4);
     // mm by default: a 12 cm sphere is ~120 units wide.

@@ -61,8 +61,23 @@ pub struct Seconds {
     pub triangulate: f64,
     pub insert: f64,
     pub mesh: f64,
+    /// Parts of `mesh`.
+    pub mesh_steps: MeshSteps,
     pub write: f64,
     pub total: f64,
+}
+
+/// Seconds spent in the mesh stage's steps (the rest of it reads the octree's cells).
+#[derive(Debug, Default, Serialize)]
+pub struct MeshSteps {
+    /// Closing what no view saw.
+    pub closure: f64,
+    /// Fill, marching tetrahedra, dropping small pieces.
+    pub march: f64,
+    /// Smoothing and the untangling that proves the mesh free of self-intersections.
+    pub smooth: f64,
+    /// Quadric simplification.
+    pub simplify: f64,
 }
 
 /// The `--stats` JSON object.
@@ -104,6 +119,12 @@ impl Seconds {
             triangulate: t.triangulate.as_secs_f64(),
             insert: t.insert.as_secs_f64(),
             mesh: t.mesh.as_secs_f64(),
+            mesh_steps: MeshSteps {
+                closure: t.closure.as_secs_f64(),
+                march: t.march.as_secs_f64(),
+                smooth: t.smooth.as_secs_f64(),
+                simplify: t.simplify.as_secs_f64(),
+            },
             ..Self::default()
         }
     }

@@ -73,6 +73,8 @@
 pub use voxoct_core::glam;
 pub use voxoct_core::{Cell, GridSpec, Octree};
 
+use std::time::{Duration, Instant};
+
 mod bitbox;
 pub mod closure;
 mod collide;
@@ -191,10 +193,36 @@ pub const PIECES_PAST_TRIANGLES: usize = 1 << 22;
 /// is a group of its own).
 pub const PIECE_GROUP_TRIANGLES: usize = 1 << 18;
 
+/// What [`mesh_cells_simplified`] produced: the mesh, whether it is proven free of
+/// self-intersections, and how long each step took.
+#[derive(Debug, Clone, Default)]
+pub struct Simplified {
+    /// The closed, oriented mesh.
+    pub mesh: Mesh,
+    /// Proven free of self-intersections, as [`mesh_cells_certified`]'s flag.
+    pub certified: bool,
+    /// Wall-clock time of each step.
+    pub times: StepTimes,
+}
+
+/// Wall-clock time of the steps of [`mesh_cells_simplified`]. On the pieces path the
+/// smoothing and simplification of each group are added up, and the exact check of the
+/// joined pieces counts as smoothing (it proves what the untangling proves on a whole mesh).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepTimes {
+    /// The fill and marching tetrahedra, with dropping small pieces.
+    pub march: Duration,
+    /// Taubin smoothing and the untangling that proves the smoothed mesh free of
+    /// self-intersections.
+    pub smooth: Duration,
+    /// Quadric simplification.
+    pub simplify: Duration,
+}
+
 /// [`mesh_cells_certified`], then [`Mesh::remove_pieces_below_fraction`] and, with
 /// `simplify`, [`simplify()`] (the cells are freed once marched), with a peak memory that follows the largest piece rather than
-/// the whole mesh: the result is proven free of self-intersections when the returned flag
-/// is `true`, as [`mesh_cells_certified`]'s.
+/// the whole mesh: the result is proven free of self-intersections when
+/// [`Simplified::certified`] is `true`, as [`mesh_cells_certified`]'s.
 ///
 /// Up to [`PIECES_PAST_TRIANGLES`] marched triangles (or with a triangle target), exactly
 /// those three steps. Past it, the separate pieces of the marched mesh (a room's objects,
@@ -214,30 +242,50 @@ pub fn mesh_cells_simplified(
     opts: &MeshOptions,
     min_piece_fraction: f32,
     simplify: Option<&Simplify>,
-) -> Result<(Mesh, bool), MeshError> {
+) -> Result<Simplified, MeshError> {
+    let mut times = StepTimes::default();
+    let t = Instant::now();
     let mut mesh = Mesh::default();
     Mesher::new().run(&cells, grid, opts, &mut mesh, false, false)?;
     drop(cells);
     let whole = mesh.triangles.len() <= PIECES_PAST_TRIANGLES
         || simplify.is_some_and(|s| s.target_triangles.is_some());
     if whole {
+        times.march = t.elapsed();
+        let t = Instant::now();
         let certified = opts
             .smoothing
             .as_ref()
             .is_some_and(|t| smooth::taubin(&mut mesh, t));
+        times.smooth = t.elapsed();
+        let t = Instant::now();
         mesh.remove_pieces_below_fraction(min_piece_fraction);
+        times.march += t.elapsed();
+        let t = Instant::now();
         if let Some(s) = simplify {
             simplify::simplify(&mut mesh, s);
         }
-        return Ok((mesh, certified));
+        times.simplify = t.elapsed();
+        return Ok(Simplified {
+            mesh,
+            certified,
+            times,
+        });
     }
     mesh.remove_pieces_below_fraction(min_piece_fraction);
-    Ok(by_pieces(
+    times.march = t.elapsed();
+    let (mesh, certified) = by_pieces(
         &mesh,
         opts.smoothing.as_ref(),
         simplify,
         PIECE_GROUP_TRIANGLES,
-    ))
+        &mut times,
+    );
+    Ok(Simplified {
+        mesh,
+        certified,
+        times,
+    })
 }
 
 /// The pieces path of [`mesh_cells_simplified`] on the marched mesh `raw`, in groups of
@@ -247,6 +295,7 @@ fn by_pieces(
     smoothing: Option<&Taubin>,
     simplify: Option<&Simplify>,
     group_triangles: usize,
+    times: &mut StepTimes,
 ) -> (Mesh, bool) {
     let (roots, size) = raw.triangle_components();
     // Groups of whole pieces (by root vertex), in root order.
@@ -301,12 +350,16 @@ fn by_pieces(
             for &k in &used {
                 map[k as usize] = u32::MAX;
             }
+            let t0 = Instant::now();
             if let Some(t) = smoothing {
                 smooth::taubin(&mut part, t);
             }
+            let t1 = Instant::now();
+            times.smooth += t1 - t0;
             if let Some(s) = simplify {
                 simplify::simplify(&mut part, s);
             }
+            times.simplify += t1.elapsed();
             // Only what is kept stays resident (the buffers were sized for the input).
             part.vertices.shrink_to_fit();
             part.triangles.shrink_to_fit();
@@ -324,7 +377,9 @@ fn by_pieces(
                 out_group.extend(std::iter::repeat_n(g as u32, part.triangles.len()));
             }
         }
+        let t0 = Instant::now();
         let bad = out.self_intersecting_triangles();
+        times.smooth += t0.elapsed();
         if bad.is_empty() {
             return (out, true);
         }
@@ -425,7 +480,7 @@ mod tests {
             prop_assume!(!raw.triangles.is_empty());
             let s = Simplify::for_leaf(grid.cell);
             let simplify = simplified.then_some(&s);
-            let (mesh, certified) = by_pieces(&raw, opts.smoothing.as_ref(), simplify, group);
+            let (mesh, certified) = by_pieces(&raw, opts.smoothing.as_ref(), simplify, group, &mut StepTimes::default());
             prop_assert!(certified);
             mesh.check_valid_solid().map_err(|e| TestCaseError::fail(e.to_string()))?;
             prop_assert_eq!(mesh.stats().components, raw.stats().components);
