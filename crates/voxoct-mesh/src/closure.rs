@@ -376,6 +376,11 @@ pub const MAX_FACE_COST: u8 = 40;
 /// cell keeping its block's side. The fine graph is a thin shell instead of the whole
 /// interior, which keeps the search trees shallow: about 20 times faster than one fine cut
 /// on a scan, with the fine cut's result wherever the coarse one is within a block of it.
+///
+/// It is an approximation, and where the prior is balanced it decides: a block's faces cost
+/// what its cell nearest an observation costs, which favours walls along the observed
+/// surface over caps far from it. On the vase development scan the fine cut alone fills the
+/// unseen body (mean error 1.4 leaves) while this keeps it open (0.43).
 fn close_coarse(dims: [usize; 3], known: &[Known], cost: &[u8]) -> Vec<bool> {
     let cd = dims.map(|d| d.div_ceil(2));
     let mut votes = vec![(0u8, 0u8); cd[0] * cd[1] * cd[2]];
