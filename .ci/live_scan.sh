@@ -45,11 +45,14 @@ cleanup() {
 }
 trap cleanup EXIT
 
-# The simulated turntable on loopback, on a port the system picks.
+# The simulated turntable on loopback, on a port the system picks. Its log exists before it
+# starts: the background job opens it only once it runs, which a loaded machine may delay past
+# the first read below.
+: >"$work/server.log"
 "$bin/turntable_server" --listen 127.0.0.1:0 -v 2>"$work/server.log" &
 server=$!
 port=""
-for _ in $(seq 100); do
+for _ in $(seq 300); do
   port=$(sed -n 's/.*listening on 127\.0\.0\.1:\([0-9]*\).*/\1/p' "$work/server.log")
   [ -n "$port" ] && break
   kill -0 "$server" 2>/dev/null || { cat "$work/server.log" >&2; fail "turntable_server died"; }
