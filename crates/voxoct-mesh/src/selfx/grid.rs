@@ -32,6 +32,8 @@ pub(super) const MAX_CELLS: f32 = (1 << 20) as f32;
 /// Cell edge in mean triangle extents: the least time on the bunny scan's mesh and the
 /// bench's sphere (more candidate pairs than with 1.5, fewer entries to sort and gather).
 pub(super) const CELL_FACTOR: f64 = 2.5;
+/// Boxes per parallel task of the grid's bounds and size.
+pub(super) const CHUNK: usize = 1 << 14;
 /// Buckets per parallel task of the pair search (the result does not depend on it).
 pub(super) const BUCKETS_PER_TASK: usize = 4096;
 
@@ -60,17 +62,36 @@ impl Index {
         ids: Option<&[u32]>,
         include: impl Fn(usize) -> bool + Sync,
     ) -> Self {
+        // The bounds, summed extents and count of the included boxes, by fixed chunks (the
+        // same sums whatever the threads).
+        let chunks = boxes.len().div_ceil(CHUNK);
+        let chunk = |c: usize| c * CHUNK..((c + 1) * CHUNK).min(boxes.len());
+        let mut parts = Vec::new();
+        crate::par::map_into(&mut parts, chunks, |c| {
+            let mut lo = Vec3A::splat(f32::INFINITY);
+            let mut hi = Vec3A::splat(f32::NEG_INFINITY);
+            let mut sum = 0.0f64;
+            let mut n = 0usize;
+            for t in chunk(c) {
+                let b = &boxes[t];
+                if include(t) && b[0].is_finite() && b[1].is_finite() {
+                    lo = lo.min(b[0]);
+                    hi = hi.max(b[1]);
+                    sum += f64::from((b[1] - b[0]).max_element());
+                    n += 1;
+                }
+            }
+            (lo, hi, sum, n)
+        });
         let mut lo = Vec3A::splat(f32::INFINITY);
         let mut hi = Vec3A::splat(f32::NEG_INFINITY);
         let mut sum = 0.0f64;
         let mut n = 0usize;
-        for (t, b) in boxes.iter().enumerate() {
-            if include(t) && b[0].is_finite() && b[1].is_finite() {
-                lo = lo.min(b[0]);
-                hi = hi.max(b[1]);
-                sum += f64::from((b[1] - b[0]).max_element());
-                n += 1;
-            }
+        for p in &parts {
+            lo = lo.min(p.0);
+            hi = hi.max(p.1);
+            sum += p.2;
+            n += p.3;
         }
         let mut index = Self {
             origin: Vec3A::ZERO,
@@ -98,15 +119,19 @@ impl Index {
         // triangle at the peak of a large mesh's check).
         let grid = &index;
         let range = |t: usize| [grid.cell(boxes[t][0]), grid.cell(boxes[t][1])];
-        let total: usize = (0..boxes.len())
-            .filter(|&t| include(t))
-            .map(|t| {
-                let r = range(t);
-                (0..3)
-                    .map(|i| (r[1][i] - r[0][i] + 1) as usize)
-                    .product::<usize>()
-            })
-            .sum();
+        let mut totals: Vec<usize> = Vec::new();
+        crate::par::map_into(&mut totals, chunks, |c| {
+            chunk(c)
+                .filter(|&t| include(t))
+                .map(|t| {
+                    let r = range(t);
+                    (0..3)
+                        .map(|i| (r[1][i] - r[0][i] + 1) as usize)
+                        .product::<usize>()
+                })
+                .sum()
+        });
+        let total: usize = totals.iter().sum();
         let buckets = (total.next_power_of_two() / 2).max(1);
         let mask = buckets as u64 - 1;
         // A counting sort by bucket, in `parts` consecutive runs of triangles counted and
@@ -326,13 +351,18 @@ impl Index {
                 if x >= base {
                     m &= (!0u64 << (x - base)) << 1;
                 }
+                // The partners whose boxes overlap x's, without a branch per candidate
+                // (most do not overlap, unpredictably).
+                let mut hit = 0u64;
                 while m != 0 {
                     let y = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    if let Some(by) = block.get(y)
-                        && overlap(bxx, by)
-                        && !shares_certified(cv[x], cv[base + y])
-                    {
+                    hit |= u64::from(overlap(bxx, &block[y])) << y;
+                }
+                while hit != 0 {
+                    let y = hit.trailing_zeros() as usize;
+                    hit &= hit - 1;
+                    if !shares_certified(cv[x], cv[base + y]) {
                         test(id[x], id[base + y], out);
                     }
                 }

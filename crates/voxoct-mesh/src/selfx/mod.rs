@@ -42,8 +42,12 @@
 //!   orientation, the projections winding once around the vertex). Then any two of its
 //!   triangles meet in exactly their shared vertex or edge. On a smooth scan nearly every
 //!   vertex is certified, leaving the exact tests to the pairs that share no vertex.
-//! - With the `parallel` feature the classification, the certificates, the counting sort
-//!   and the buckets are processed on every core; the result is the same set.
+//! - Within a bucket, the boxes of a block of entries are compared with one entry's without
+//!   a branch per candidate (most do not overlap, unpredictably); only the overlapping ones
+//!   are looked at further.
+//! - With the `parallel` feature the classification, the certificates, the grid's bounds,
+//!   the counting sort and the buckets are processed on every core, and the vertex fans are
+//!   built alongside the classification; the result is the same set.
 //!
 //! [`untangle`] reuses the search state to re-check only the pairs around moved vertices:
 //! the grid is built once over the smoothed boxes; the pairs of two moved triangles come
@@ -120,6 +124,18 @@ fn tri_box(vertices: &[Vec3], t: [u32; 3]) -> [Vec3A; 2] {
     let g = |i: u32| Vec3A::from(vertices.get(i as usize).copied().unwrap_or(Vec3::ZERO));
     let (a, b, c) = (g(t[0]), g(t[1]), g(t[2]));
     [a.min(b).min(c), a.max(b).max(c)]
+}
+
+/// `(a(), b())`, the two at once with the `parallel` feature.
+fn join<A: Send, B: Send>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> B + Send) -> (A, B) {
+    #[cfg(feature = "parallel")]
+    {
+        rayon::join(a, b)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        (a(), b())
+    }
 }
 
 /// Largest fan that [`certified`] examines.
@@ -238,9 +254,15 @@ impl<'a> Checker<'a> {
     /// Prepares the search over the triangles' current boxes.
     pub(crate) fn new(vertices: &[Vec3], triangles: &'a [[u32; 3]], f32_degenerate: bool) -> Self {
         let nv = vertices.len();
-        let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
-        let boxes = crate::par::map(triangles, |t| tri_box(vertices, *t));
-        let fans = VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false);
+        // The fans (one thread) alongside the triangles' facts and boxes.
+        let (fans, (facts, boxes)) = join(
+            || VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false),
+            || {
+                let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
+                let boxes = crate::par::map(triangles, |t| tri_box(vertices, *t));
+                (facts, boxes)
+            },
+        );
         let mut cert = Vec::new();
         crate::par::map_into(&mut cert, nv, |v| {
             certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
