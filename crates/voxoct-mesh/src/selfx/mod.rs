@@ -436,7 +436,9 @@ const UNTANGLE_STEPS: u8 = 4;
 /// a vertex whose fan is [`certified`].
 #[inline]
 fn shares_certified(a: [u32; 3], b: [u32; 3]) -> bool {
-    a.iter().any(|&v| v != u32::MAX && b.contains(&v))
+    // Without branches: which vertex is shared, if any, varies unpredictably.
+    let s = |v: u32| (v != u32::MAX) & ((v == b[0]) | (v == b[1]) | (v == b[2]));
+    s(a[0]) | s(a[1]) | s(a[2])
 }
 
 #[cfg(test)]
