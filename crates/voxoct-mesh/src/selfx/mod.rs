@@ -168,14 +168,9 @@ fn certified(
         }
         all &= signs;
         let tri = triangles[t as usize];
-        let r = if tri[0] == v {
-            0
-        } else if tri[1] == v {
-            1
-        } else {
-            2
-        };
-        *l = (tri[(r + 1) % 3], tri[(r + 2) % 3]);
+        // v's corner, without a branch (which corner it is varies).
+        let r = usize::from(tri[1] == v) | (usize::from(tri[2] == v) << 1);
+        *l = (tri[[1, 2, 0, 0][r]], tri[[2, 0, 1, 1][r]]);
     }
     if all == 0 {
         return false;
