@@ -46,8 +46,8 @@
 //!   a branch per candidate (most do not overlap, unpredictably); only the overlapping ones
 //!   are looked at further.
 //! - With the `parallel` feature the classification, the certificates, the grid's bounds,
-//!   the counting sort and the buckets are processed on every core, and the vertex fans are
-//!   built alongside the classification; the result is the same set.
+//!   the counting sort and the buckets are processed on every core, and the fans and
+//!   certificates are computed alongside the boxes and the grid; the result is the same set.
 //!
 //! [`untangle`] reuses the search state to re-check only the pairs around moved vertices:
 //! the grid is built once over the smoothed boxes; the pairs of two moved triangles come
@@ -249,21 +249,25 @@ impl<'a> Checker<'a> {
     /// Prepares the search over the triangles' current boxes.
     pub(crate) fn new(vertices: &[Vec3], triangles: &'a [[u32; 3]], f32_degenerate: bool) -> Self {
         let nv = vertices.len();
-        // The fans (one thread) alongside the triangles' facts and boxes.
-        let (fans, (facts, boxes)) = join(
-            || VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false),
+        let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
+        // The fans (built on one thread) and certificates alongside the boxes and the grid,
+        // so that the serial parts of each overlap the other's parallel ones.
+        let ((fans, cert, cv), (boxes, index)) = join(
             || {
-                let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
+                let fans = VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false);
+                let mut cert = Vec::new();
+                crate::par::map_into(&mut cert, nv, |v| {
+                    certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
+                });
+                let cv = crate::par::map(triangles, |t| certified_of(&cert, *t));
+                (fans, cert, cv)
+            },
+            || {
                 let boxes = crate::par::map(triangles, |t| tri_box(vertices, *t));
-                (facts, boxes)
+                let index = Index::build(&boxes, None, |t| facts[t].0 != NO_AXIS);
+                (boxes, index)
             },
         );
-        let mut cert = Vec::new();
-        crate::par::map_into(&mut cert, nv, |v| {
-            certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
-        });
-        let cv = crate::par::map(triangles, |t| certified_of(&cert, *t));
-        let index = Index::build(&boxes, None, |t| facts[t].0 != NO_AXIS);
         Self {
             triangles,
             f32_degenerate,
