@@ -288,6 +288,35 @@ proptest! {
         let want = all_pairs(mesh.triangles.len(), |i, j| triangles_intersect(&mesh, i, j));
         prop_assert_eq!(self_intersecting_triangles(&mesh), want);
     }
+
+    /// The grid search finds exactly what all pairs find when one grid cell holds more
+    /// than one block of 64 entries (a dense cluster of small triangles, made to share one
+    /// cell by a few large ones that set the cell size), whatever the boxes' positions in
+    /// the pair loop's lanes.
+    #[test]
+    fn grid_search_matches_all_pairs_in_crowded_cells(
+        verts in prop::collection::vec(prop::array::uniform3(-1.0f32..1.0), 12..80),
+        picks in prop::collection::vec((0usize..1000, 0usize..1000, 0usize..1000), 70..200),
+        big in 1usize..4,
+    ) {
+        let n = verts.len();
+        // Small vertices in a 2 cm cube, three far corners for the large triangles.
+        let mut vertices: Vec<Vec3> = verts.iter().map(|v| Vec3::from_array(*v) * 0.01).collect();
+        vertices.extend([Vec3::new(-5.0, -5.0, 5.0), Vec3::new(5.0, -5.0, 5.0), Vec3::new(0.0, 5.0, 5.0)]);
+        let mut triangles: Vec<[u32; 3]> = picks
+            .iter()
+            .map(|&(a, b, c)| {
+                let a = a % n;
+                [a, (a + 1 + b % 5) % n, (a + 2 + c % 7) % n].map(|x| x as u32)
+            })
+            .collect();
+        for _ in 0..big {
+            triangles.push([n as u32, n as u32 + 1, n as u32 + 2]);
+        }
+        let mesh = Mesh { vertices, triangles };
+        let want = all_pairs(mesh.triangles.len(), |i, j| triangles_intersect(&mesh, i, j));
+        prop_assert_eq!(self_intersecting_triangles(&mesh), want);
+    }
 }
 
 #[test]

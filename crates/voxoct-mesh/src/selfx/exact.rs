@@ -147,6 +147,9 @@ pub(super) fn sides(t: &[P; 3], x: &[P; 3]) -> [i8; 3] {
         let perm = na[0] * e[0].abs() + na[1] * e[1].abs() + na[2] * e[2].abs();
         if det.abs() > BOUND * perm {
             -sign(det)
+        } else if (0..3).any(|k| x[k] == t[0][k] && t[1][k] == t[0][k] && t[2][k] == t[0][k]) {
+            // All four in a plane normal to an axis (a flat closure's floor): coplanar.
+            0
         } else {
             orient3d(&t[0], &t[1], &t[2], x)
         }
@@ -165,16 +168,37 @@ pub(super) fn tri_tri(t1: &[P; 3], t2: &[P; 3], k1: usize, k2: usize) -> bool {
     if one_side(s2) {
         return false;
     }
-    let s1 = sides(t2, t1);
-    if one_side(s1) {
-        return false;
-    }
+    let s1 = if s2 == [0; 3] {
+        // Coplanar: most such pairs (neighbours on a flat patch) are told apart by an edge.
+        if separated_2d(t1, t2, k1) || separated_2d(t2, t1, k1) {
+            return false;
+        }
+        [0; 3]
+    } else {
+        let s1 = sides(t2, t1);
+        if one_side(s1) {
+            return false;
+        }
+        s1
+    };
     // They meet exactly when an edge of one meets the other: the intersection is convex,
     // and an extreme point of it lies on the boundary of one of them.
     (0..3).any(|e| {
         let (i, j) = (e, (e + 1) % 3);
         seg_tri(&t1[i], &t1[j], s1[i], s1[j], t2, k2)
             || seg_tri(&t2[i], &t2[j], s2[i], s2[j], t1, k1)
+    })
+}
+
+/// Whether the line of an edge of `t` has all of `u` strictly on its outer side (away from
+/// the opposite vertex of `t`), all coplanar, in the projection dropping axis `k`, which
+/// maps their plane bijectively: then `u` lies in an open half-plane and `t` in the closed
+/// other one, so they do not meet.
+pub(super) fn separated_2d(t: &[P; 3], u: &[P; 3], k: usize) -> bool {
+    let o = orient2d(&t[0], &t[1], &t[2], k);
+    (0..3).any(|e| {
+        let (i, j) = (e, (e + 1) % 3);
+        u.iter().all(|x| orient2d(&t[i], &t[j], x, k) == -o)
     })
 }
 
@@ -319,6 +343,56 @@ mod tests {
             });
             let want = x.each_ref().map(|x| orient3d(&t[0], &t[1], &t[2], x));
             prop_assert_eq!(sides(&t, &x), want);
+        }
+
+        /// `tri_tri` with its shortcuts (filtered sides, planes normal to an axis, coplanar
+        /// pairs separated by an edge) agrees with the edge loop alone on exact sides, on
+        /// coplanar, axis-aligned and general pairs.
+        #[test]
+        fn tri_tri_agrees_with_the_edge_loop(
+            t1 in prop::array::uniform3(point()),
+            t2 in prop::array::uniform3(point()),
+            flat in prop::option::of(0usize..3),
+            coplanar in any::<bool>(),
+            mix in prop::array::uniform3(prop::option::of((-3i32..=3, -3i32..=3))),
+            abc in prop::array::uniform3((-3i32..=3, -3i32..=3)),
+            lattice in (prop::array::uniform3(prop::array::uniform3(-4i32..=4)), -30i32..30),
+        ) {
+            // Coplanar pairs on one lattice, so that t2's points are exact.
+            let mut t1 = if coplanar {
+                lattice.0.map(|c| c.map(|x| f64::from(x as f32 * 2f32.powi(lattice.1))))
+            } else {
+                t1
+            };
+            if let Some(k) = flat {
+                t1[1][k] = t1[0][k];
+                t1[2][k] = t1[0][k];
+            }
+            // Some of t2's points in the plane of t1 (exactly, where f32 allows it).
+            let t2: [P; 3] = std::array::from_fn(|i| match if coplanar { Some(abc[i]) } else { mix[i] } {
+                Some((a, b)) => {
+                    let (a, b) = (f64::from(a) / 2.0, f64::from(b) / 2.0);
+                    let p: P = std::array::from_fn(|k| {
+                        t1[0][k] + a * (t1[1][k] - t1[0][k]) + b * (t1[2][k] - t1[0][k])
+                    });
+                    if p.iter().all(|&c| f64::from(c as f32) == c) { p } else { t2[i] }
+                }
+                None => t2[i],
+            });
+            let v: Vec<Vec3> = t1.iter().chain(&t2).map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)).collect();
+            let (k1, _) = classify(&v, [0, 1, 2]);
+            let (k2, _) = classify(&v, [3, 4, 5]);
+            prop_assume!(k1 != NO_AXIS && k2 != NO_AXIS);
+            let (k1, k2) = (usize::from(k1), usize::from(k2));
+            let s2 = t2.each_ref().map(|x| orient3d(&t1[0], &t1[1], &t1[2], x));
+            let s1 = t1.each_ref().map(|x| orient3d(&t2[0], &t2[1], &t2[2], x));
+            let want = (0..3).any(|e| {
+                let (i, j) = (e, (e + 1) % 3);
+                seg_tri(&t1[i], &t1[j], s1[i], s1[j], &t2, k2)
+                    || seg_tri(&t2[i], &t2[j], s2[i], s2[j], &t1, k1)
+            });
+            prop_assert_eq!(tri_tri(&t1, &t2, k1, k2), want);
+            prop_assert_eq!(tri_tri(&t2, &t1, k2, k1), want);
         }
     }
 }

@@ -3,7 +3,7 @@
 
 use std::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
-use voxoct_core::glam::{Vec3, Vec3A};
+use voxoct_core::glam::{Vec3, Vec3A, Vec4};
 
 use super::*;
 
@@ -32,6 +32,8 @@ pub(super) const MAX_CELLS: f32 = (1 << 20) as f32;
 /// Cell edge in mean triangle extents: the least time on the bunny scan's mesh and the
 /// bench's sphere (more candidate pairs than with 1.5, fewer entries to sort and gather).
 pub(super) const CELL_FACTOR: f64 = 2.5;
+/// Boxes per parallel task of the grid's bounds and size.
+pub(super) const CHUNK: usize = 1 << 14;
 /// Buckets per parallel task of the pair search (the result does not depend on it).
 pub(super) const BUCKETS_PER_TASK: usize = 4096;
 
@@ -60,17 +62,36 @@ impl Index {
         ids: Option<&[u32]>,
         include: impl Fn(usize) -> bool + Sync,
     ) -> Self {
+        // The bounds, summed extents and count of the included boxes, by fixed chunks (the
+        // same sums whatever the threads).
+        let chunks = boxes.len().div_ceil(CHUNK);
+        let chunk = |c: usize| c * CHUNK..((c + 1) * CHUNK).min(boxes.len());
+        let mut parts = Vec::new();
+        crate::par::map_into(&mut parts, chunks, |c| {
+            let mut lo = Vec3A::splat(f32::INFINITY);
+            let mut hi = Vec3A::splat(f32::NEG_INFINITY);
+            let mut sum = 0.0f64;
+            let mut n = 0usize;
+            for t in chunk(c) {
+                let b = &boxes[t];
+                if include(t) && b[0].is_finite() && b[1].is_finite() {
+                    lo = lo.min(b[0]);
+                    hi = hi.max(b[1]);
+                    sum += f64::from((b[1] - b[0]).max_element());
+                    n += 1;
+                }
+            }
+            (lo, hi, sum, n)
+        });
         let mut lo = Vec3A::splat(f32::INFINITY);
         let mut hi = Vec3A::splat(f32::NEG_INFINITY);
         let mut sum = 0.0f64;
         let mut n = 0usize;
-        for (t, b) in boxes.iter().enumerate() {
-            if include(t) && b[0].is_finite() && b[1].is_finite() {
-                lo = lo.min(b[0]);
-                hi = hi.max(b[1]);
-                sum += f64::from((b[1] - b[0]).max_element());
-                n += 1;
-            }
+        for p in &parts {
+            lo = lo.min(p.0);
+            hi = hi.max(p.1);
+            sum += p.2;
+            n += p.3;
         }
         let mut index = Self {
             origin: Vec3A::ZERO,
@@ -98,15 +119,19 @@ impl Index {
         // triangle at the peak of a large mesh's check).
         let grid = &index;
         let range = |t: usize| [grid.cell(boxes[t][0]), grid.cell(boxes[t][1])];
-        let total: usize = (0..boxes.len())
-            .filter(|&t| include(t))
-            .map(|t| {
-                let r = range(t);
-                (0..3)
-                    .map(|i| (r[1][i] - r[0][i] + 1) as usize)
-                    .product::<usize>()
-            })
-            .sum();
+        let mut totals: Vec<usize> = Vec::new();
+        crate::par::map_into(&mut totals, chunks, |c| {
+            chunk(c)
+                .filter(|&t| include(t))
+                .map(|t| {
+                    let r = range(t);
+                    (0..3)
+                        .map(|i| (r[1][i] - r[0][i] + 1) as usize)
+                        .product::<usize>()
+                })
+                .sum()
+        });
+        let total: usize = totals.iter().sum();
         let buckets = (total.next_power_of_two() / 2).max(1);
         let mask = buckets as u64 - 1;
         // A counting sort by bucket, in `parts` consecutive runs of triangles counted and
@@ -282,29 +307,43 @@ impl Index {
                 out.push(tj);
             }
         };
-        let overlap = |p: &[Vec3A; 2], q: &[Vec3A; 2]| (p[0].cmple(q[1]) & q[0].cmple(p[1])).all();
-        // The bucket's proper entries, their flags and boxes together, 64 at a time; `has[r]`:
-        // the entries of a block whose flags include the axes `r`.
+        // The bucket's proper entries, their flags and boxes (one array per bound, padded
+        // to whole lanes with boxes that overlap nothing), 64 at a time; `has[r]`: the
+        // entries of a block whose flags include the axes `r`.
         // `cv`: the triangle's certified vertices (others `u32::MAX`): a pair that shares one
         // needs no test.
-        let Scratch { id, fl, bx, cv } = scratch;
+        let Scratch { id, fl, bounds, cv } = scratch;
         let mut n = 0;
         for (&t, &f) in items.iter().zip(flags) {
             if ck.facts[t as usize].0 != NO_AXIS {
                 if n == id.len() {
                     id.resize(n + BLOCK, 0);
                     fl.resize(n + BLOCK, 0);
-                    bx.resize(n + BLOCK, [Vec3A::ZERO; 2]);
+                    for a in bounds.iter_mut() {
+                        a.resize(n + BLOCK, 0.0);
+                    }
                     cv.resize(n + BLOCK, [0; 3]);
                 }
                 id[n] = t;
                 fl[n] = f;
-                bx[n] = ck.boxes[t as usize];
+                let [lo, hi] = ck.boxes[t as usize];
+                for k in 0..3 {
+                    bounds[k][n] = lo[k];
+                    bounds[3 + k][n] = hi[k];
+                }
                 cv[n] = ck.certified_vertices(t);
                 n += 1;
             }
         }
-        let (id, fl, bx, cv) = (&id[..n], &fl[..n], &bx[..n], &cv[..n]);
+        let pad = n..n.next_multiple_of(LANES);
+        for (k, a) in bounds.iter_mut().enumerate() {
+            a[pad.clone()].fill(if k < 3 {
+                f32::INFINITY
+            } else {
+                f32::NEG_INFINITY
+            });
+        }
+        let (id, fl, cv) = (&id[..n], &fl[..n], &cv[..n]);
         for base in (0..n).step_by(BLOCK) {
             let end = (base + BLOCK).min(n);
             // By exact flags, then (summing over supersets) by included axes.
@@ -319,22 +358,46 @@ impl Index {
                     }
                 }
             }
-            let block = &bx[base..end];
-            for (x, (bxx, &fx)) in bx[..end].iter().zip(&fl[..end]).enumerate() {
+            for (x, &fx) in fl[..end].iter().enumerate() {
                 // Partners in this block that come after x.
                 let mut m = has[usize::from(7 & !fx)];
                 if x >= base {
                     m &= (!0u64 << (x - base)) << 1;
                 }
-                while m != 0 {
-                    let y = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    if let Some(by) = block.get(y)
-                        && overlap(bxx, by)
-                        && !shares_certified(cv[x], cv[base + y])
-                    {
-                        test(id[x], id[base + y], out);
-                    }
+                if m == 0 {
+                    continue;
+                }
+                // Which of the lanes from the first to the last partner hold a box that
+                // overlaps x's, four at a time and without a branch per candidate.
+                let lo = Vec4::new(bounds[0][x], bounds[1][x], bounds[2][x], 0.0);
+                let hi = Vec4::new(bounds[3][x], bounds[4][x], bounds[5][x], 0.0);
+                let mut hit = 0u64;
+                let first = m.trailing_zeros() as usize & !(LANES - 1);
+                let last = BLOCK - m.leading_zeros() as usize;
+                for c in (first..last).step_by(LANES) {
+                    let i = base + c;
+                    let lane = |a: &Vec<f32>| Vec4::from_slice(&a[i..i + LANES]);
+                    let o = lane(&bounds[0]).cmple(Vec4::splat(hi.x))
+                        & lane(&bounds[1]).cmple(Vec4::splat(hi.y))
+                        & lane(&bounds[2]).cmple(Vec4::splat(hi.z))
+                        & Vec4::splat(lo.x).cmple(lane(&bounds[3]))
+                        & Vec4::splat(lo.y).cmple(lane(&bounds[4]))
+                        & Vec4::splat(lo.z).cmple(lane(&bounds[5]));
+                    hit |= u64::from(o.bitmask()) << c;
+                }
+                hit &= m;
+                // Of those, the ones that share no certified vertex with x, again without a
+                // branch per pair (most share one, which one varies).
+                let mut keep = 0u64;
+                while hit != 0 {
+                    let y = hit.trailing_zeros() as usize;
+                    hit &= hit - 1;
+                    keep |= u64::from(!shares_certified(cv[x], cv[base + y])) << y;
+                }
+                while keep != 0 {
+                    let y = keep.trailing_zeros() as usize;
+                    keep &= keep - 1;
+                    test(id[x], id[base + y], out);
                 }
             }
         }
@@ -343,13 +406,16 @@ impl Index {
 
 /// Entries per block of the pair loop (one bit each in a `u64`).
 pub(super) const BLOCK: usize = 64;
+/// Boxes compared at once in the pair loop (a multiple of which divides [`BLOCK`]).
+pub(super) const LANES: usize = 4;
 
 /// Reused buffers of [`Index::bucket_pairs`].
 #[derive(Default)]
 pub(super) struct Scratch {
     pub(super) id: Vec<u32>,
     pub(super) fl: Vec<u8>,
-    pub(super) bx: Vec<[Vec3A; 2]>,
+    /// Per bound (minimum x, y, z, maximum x, y, z), its value for each entry.
+    pub(super) bounds: [Vec<f32>; 6],
     pub(super) cv: Vec<[u32; 3]>,
 }
 

@@ -42,8 +42,12 @@
 //!   orientation, the projections winding once around the vertex). Then any two of its
 //!   triangles meet in exactly their shared vertex or edge. On a smooth scan nearly every
 //!   vertex is certified, leaving the exact tests to the pairs that share no vertex.
-//! - With the `parallel` feature the classification, the certificates, the counting sort
-//!   and the buckets are processed on every core; the result is the same set.
+//! - Within a bucket, the boxes of a block of entries are compared with one entry's without
+//!   a branch per candidate (most do not overlap, unpredictably); only the overlapping ones
+//!   are looked at further.
+//! - With the `parallel` feature the classification, the certificates, the grid's bounds,
+//!   the counting sort and the buckets are processed on every core, and the fans and
+//!   certificates are computed alongside the boxes and the grid; the result is the same set.
 //!
 //! [`untangle`] reuses the search state to re-check only the pairs around moved vertices:
 //! the grid is built once over the smoothed boxes; the pairs of two moved triangles come
@@ -122,6 +126,18 @@ fn tri_box(vertices: &[Vec3], t: [u32; 3]) -> [Vec3A; 2] {
     [a.min(b).min(c), a.max(b).max(c)]
 }
 
+/// `(a(), b())`, the two at once with the `parallel` feature.
+fn join<A: Send, B: Send>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> B + Send) -> (A, B) {
+    #[cfg(feature = "parallel")]
+    {
+        rayon::join(a, b)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        (a(), b())
+    }
+}
+
 /// Largest fan that [`certified`] examines.
 const MAX_FAN: usize = 32;
 
@@ -152,14 +168,9 @@ fn certified(
         }
         all &= signs;
         let tri = triangles[t as usize];
-        let r = if tri[0] == v {
-            0
-        } else if tri[1] == v {
-            1
-        } else {
-            2
-        };
-        *l = (tri[(r + 1) % 3], tri[(r + 2) % 3]);
+        // v's corner, without a branch (which corner it is varies).
+        let r = usize::from(tri[1] == v) | (usize::from(tri[2] == v) << 1);
+        *l = (tri[[1, 2, 0, 0][r]], tri[[2, 0, 1, 1][r]]);
     }
     if all == 0 {
         return false;
@@ -239,14 +250,24 @@ impl<'a> Checker<'a> {
     pub(crate) fn new(vertices: &[Vec3], triangles: &'a [[u32; 3]], f32_degenerate: bool) -> Self {
         let nv = vertices.len();
         let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
-        let boxes = crate::par::map(triangles, |t| tri_box(vertices, *t));
-        let fans = VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false);
-        let mut cert = Vec::new();
-        crate::par::map_into(&mut cert, nv, |v| {
-            certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
-        });
-        let cv = crate::par::map(triangles, |t| certified_of(&cert, *t));
-        let index = Index::build(&boxes, None, |t| facts[t].0 != NO_AXIS);
+        // The fans (built on one thread) and certificates alongside the boxes and the grid,
+        // so that the serial parts of each overlap the other's parallel ones.
+        let ((fans, cert, cv), (boxes, index)) = join(
+            || {
+                let fans = VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false);
+                let mut cert = Vec::new();
+                crate::par::map_into(&mut cert, nv, |v| {
+                    certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
+                });
+                let cv = crate::par::map(triangles, |t| certified_of(&cert, *t));
+                (fans, cert, cv)
+            },
+            || {
+                let boxes = crate::par::map(triangles, |t| tri_box(vertices, *t));
+                let index = Index::build(&boxes, None, |t| facts[t].0 != NO_AXIS);
+                (boxes, index)
+            },
+        );
         Self {
             triangles,
             f32_degenerate,
@@ -414,7 +435,9 @@ const UNTANGLE_STEPS: u8 = 4;
 /// a vertex whose fan is [`certified`].
 #[inline]
 fn shares_certified(a: [u32; 3], b: [u32; 3]) -> bool {
-    a.iter().any(|&v| v != u32::MAX && b.contains(&v))
+    // Without branches: which vertex is shared, if any, varies unpredictably.
+    let s = |v: u32| (v != u32::MAX) & ((v == b[0]) | (v == b[1]) | (v == b[2]));
+    s(a[0]) | s(a[1]) | s(a[2])
 }
 
 #[cfg(test)]
