@@ -448,38 +448,80 @@ impl<'m> Rounds<'m> {
         }
         // The seams: a run over the whole mesh, from the vertices no region could move.
         let State {
-            pos,
+            mut pos,
             quad,
             nrm,
-            parent,
-            moved,
+            mut parent,
+            mut moved,
             slots,
             passes,
             collapses,
         } = state;
+        if self.grid.is_none() {
+            return Round {
+                passes,
+                collapses,
+                pos,
+                tris: slots,
+                parent,
+                moved,
+            };
+        }
+        // On the vertices that are left only, numbered in the same order (so the run makes
+        // the same collapses as on the global numbering), so that each pass's work follows
+        // the mesh that is left rather than the input's vertex count.
+        let mut local_of = vec![u32::MAX; nv];
+        for t in &slots {
+            for &k in t {
+                local_of[k as usize] = 0;
+            }
+        }
+        let mut live = Vec::new();
+        for (g, l) in local_of.iter_mut().enumerate() {
+            if *l == 0 {
+                *l = live.len() as u32;
+                live.push(g as u32);
+            }
+        }
+        let at = |g: &u32| *g as usize;
         let mut seam = Collapser::new(
             Mesh {
-                vertices: pos,
-                triangles: slots,
+                vertices: live.iter().map(|g| pos[at(g)]).collect(),
+                triangles: slots
+                    .iter()
+                    .map(|t| t.map(|k| local_of[k as usize]))
+                    .collect(),
             },
-            (quad, nrm),
-            frozen.to_vec(),
+            (
+                live.iter().map(|g| quad[at(g)]).collect(),
+                live.iter().map(|g| nrm[at(g)]).collect(),
+            ),
+            live.iter().map(|g| frozen[at(g)]).collect(),
             opts,
             origin,
         );
-        seam.parent = parent;
-        seam.moved = moved;
-        seam.active = active;
-        if self.grid.is_some() {
-            seam.run();
+        drop((quad, nrm, slots, local_of));
+        seam.active = live.iter().map(|g| active[at(g)]).collect();
+        seam.run();
+        for (l, &g) in live.iter().enumerate() {
+            let g = g as usize;
+            if seam.parent[l] as usize != l {
+                parent[g] = live[seam.parent[l] as usize];
+            }
+            moved[g] |= seam.moved[l];
+            pos[g] = seam.pos[l];
         }
         Round {
             passes: passes + seam.passes,
             collapses: collapses + seam.collapses,
-            pos: seam.pos,
-            tris: seam.tris,
-            parent: seam.parent,
-            moved: seam.moved,
+            pos,
+            tris: seam
+                .tris
+                .iter()
+                .map(|t| t.map(|k| live[k as usize]))
+                .collect(),
+            parent,
+            moved,
         }
     }
 }
