@@ -38,7 +38,9 @@
 //!   and pass by pass, without those that touch a frozen vertex and with every check made
 //!   again (no candidate is evaluated or sorted again), in the regions that hold a newly
 //!   frozen vertex only (the others' results do not depend on anything outside them and
-//!   are kept); the other phases run again. After [`MAX_RETRIES`] rounds the input is left
+//!   are kept); the other phases run again, except that a second-phase region whose copy
+//!   is the same as in the round before (by a 64-bit fingerprint) takes its result from
+//!   there. After [`MAX_RETRIES`] rounds the input is left
 //!   unchanged. Intersections the input already had are left as they are (their triangles
 //!   do not count as changed). A later round's test is made only around the triangles that
 //!   differ from the round before's or that its test found (the `recheck` module): it

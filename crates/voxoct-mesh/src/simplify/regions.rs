@@ -51,6 +51,9 @@ pub(super) struct Region {
     ids: Vec<u32>,
     /// How many of `tris` are its own.
     own: usize,
+    /// The number of its cube in the grid (0 without a grid): the same region in another
+    /// round.
+    key: u32,
 }
 
 /// How the mesh is split: which vertices each region may move, and the regions' copies.
@@ -64,8 +67,8 @@ pub(super) struct Plan {
 /// the cube of its centroid (one region without a grid).
 pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>) -> Plan {
     let nv = mesh.vertices.len();
-    let region_of = assign(mesh, grid);
-    let count = region_of.iter().max().map_or(0, |&r| r as usize + 1);
+    let (region_of, keys) = assign(mesh, grid);
+    let count = keys.len();
     // The region of each vertex's triangles, or MIXED.
     let mut pure = vec![UNUSED; nv];
     for (t, &r) in mesh.triangles.iter().zip(&region_of) {
@@ -149,6 +152,7 @@ pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>) -> Plan {
             ids,
             own: own.len(),
             verts,
+            key: keys[r],
         }
     });
     Plan { movable, regions }
@@ -224,10 +228,15 @@ impl Grid {
 }
 
 /// The region of every triangle: the cube of its centroid (all 0 without a grid), the
-/// cubes that hold none skipped.
-fn assign(mesh: &Mesh, grid: Option<&Grid>) -> Vec<u32> {
+/// cubes that hold none skipped; and each region's cube.
+fn assign(mesh: &Mesh, grid: Option<&Grid>) -> (Vec<u32>, Vec<u32>) {
     let Some(&Grid { lo, edge, dims }) = grid else {
-        return vec![0; mesh.triangles.len()];
+        let keys = if mesh.triangles.is_empty() {
+            Vec::new()
+        } else {
+            vec![0]
+        };
+        return (vec![0; mesh.triangles.len()], keys);
     };
     let at = |k: u32| mesh.vertices[k as usize];
     let cell = |t: &[u32; 3]| {
@@ -244,14 +253,14 @@ fn assign(mesh: &Mesh, grid: Option<&Grid>) -> Vec<u32> {
     for &k in &keys {
         used[k as usize] = 0;
     }
-    let mut n = 0;
-    for u in &mut used {
+    let mut cubes = Vec::new();
+    for (c, u) in used.iter_mut().enumerate() {
         if *u == 0 {
-            *u = n;
-            n += 1;
+            *u = cubes.len() as u32;
+            cubes.push(c as u32);
         }
     }
-    keys.iter().map(|&k| used[k as usize]).collect()
+    (keys.iter().map(|&k| used[k as usize]).collect(), cubes)
 }
 
 /// The result of one round over the whole mesh (global indices, `tris` in mesh order).
@@ -301,8 +310,8 @@ impl State {
         for &id in &region.ids[..region.own] {
             self.slots[id as usize] = [u32::MAX; 3];
         }
-        for &(id, t) in &out.tris {
-            self.slots[id as usize] = t;
+        for &(k, t) in &out.tris {
+            self.slots[region.ids[k as usize] as usize] = t;
         }
     }
 
@@ -313,7 +322,9 @@ impl State {
 
     /// Runs every region of `plan` on this state (the vertices `active` first tried,
     /// `None`: all), or, where `done` holds a region's result, takes it as it is, or replays
-    /// `logs` on the regions `redo` names; returns the regions' results and logs.
+    /// `logs` on the regions `redo` names, or, where `cache` holds the result of a region
+    /// of the same cube whose copy had the same fingerprint, takes that; returns the
+    /// regions' results, logs and fingerprints (0 without `cache`).
     #[allow(clippy::too_many_arguments)]
     fn phase(
         self,
@@ -323,14 +334,15 @@ impl State {
         opts: &Simplify,
         origin: DVec3,
         done: Option<(&[RegionResult], &[RoundLog], &[bool])>,
-    ) -> (Self, Vec<(RegionResult, RoundLog)>) {
+        cache: Option<&[Cached]>,
+    ) -> (Self, Vec<(RegionResult, RoundLog, u64)>) {
         let shared = Mutex::new(self);
         let mut out = Vec::new();
         par::map_into(&mut out, plan.regions.len(), |r| {
             let region = &plan.regions[r];
             let result = match done {
                 Some((results, _, redo)) if !redo[r] => {
-                    (results[r].clone(), (Vec::new(), Vec::new()))
+                    (results[r].clone(), (Vec::new(), Vec::new()), 0)
                 }
                 _ => {
                     let copy = {
@@ -338,7 +350,18 @@ impl State {
                         region_copy(&st, region, plan, frozen, active, opts, origin)
                     };
                     let replay = done.map(|(_, logs, _)| &logs[r]);
-                    run_region(copy, region, plan, frozen, replay)
+                    let print = cache.map_or(0, |_| fingerprint(&copy, region));
+                    let hit = cache.and_then(|c| {
+                        let i = c.binary_search_by_key(&region.key, |e| e.0).ok()?;
+                        (c[i].1 == print).then(|| c[i].2.clone())
+                    });
+                    match hit {
+                        Some(result) => (result, (Vec::new(), Vec::new()), print),
+                        None => {
+                            let (result, log) = run_region(copy, region, plan, frozen, replay);
+                            (result, log, print)
+                        }
+                    }
                 }
             };
             let mut st = shared.lock().unwrap_or_else(PoisonError::into_inner);
@@ -358,7 +381,9 @@ impl State {
 /// the second phase could not move). A later round replays the first phase's collapses
 /// without the frozen vertices in the regions that hold a vertex frozen since (the other
 /// regions' results are kept: their movable vertices that moved and the collapsed ones,
-/// and their triangles, a fraction of the mesh) and runs the other two phases again.
+/// and their triangles, a fraction of the mesh) and runs the other two phases again, the
+/// second one's regions whose copies have the fingerprint of the round before's in the same
+/// cube taking that round's result (a run depends on nothing but its copy).
 pub(super) struct Rounds<'m> {
     mesh: &'m Mesh,
     grid: Option<Grid>,
@@ -369,6 +394,42 @@ pub(super) struct Rounds<'m> {
     logs: Vec<RoundLog>,
     /// The frozen vertices of the latest round.
     frozen_then: Vec<bool>,
+    /// The second phase's results of the latest round, by cube (increasing).
+    shifted_done: Vec<Cached>,
+}
+
+/// A region's cube, the fingerprint of its copy and its result.
+type Cached = (u32, u64, RegionResult);
+
+/// A 64-bit fingerprint (SipHash) of everything a region's run depends on and its result
+/// names: its copy (positions, triangles and their order, quadrics, normals, the vertices
+/// that may not move and those tried first), its vertices' global numbers and how many of
+/// its triangles are its own. The options and the quadrics' origin are the same in every
+/// round.
+fn fingerprint(c: &Collapser, region: &Region) -> u64 {
+    use std::hash::Hasher;
+    let mut h = std::hash::DefaultHasher::new();
+    h.write_usize(region.own);
+    h.write_usize(c.tris.len());
+    for t in &c.tris {
+        h.write_u64(u64::from(t[0]) | u64::from(t[1]) << 32);
+        h.write_u32(t[2]);
+    }
+    h.write_usize(region.verts.len());
+    for (l, &g) in region.verts.iter().enumerate() {
+        let p = c.pos[l];
+        let n = c.nrm[l];
+        h.write_u32(g);
+        h.write_u64(u64::from(p.x.to_bits()) | u64::from(p.y.to_bits()) << 32);
+        h.write_u64(u64::from(p.z.to_bits()) | u64::from(n.x.to_bits()) << 32);
+        h.write_u64(u64::from(n.y.to_bits()) | u64::from(n.z.to_bits()) << 32);
+        for q in &c.quad[l].q {
+            h.write_u64(q.to_bits());
+        }
+        h.write_u64(c.quad[l].w.to_bits());
+        h.write_u8(u8::from(c.frozen[l]) | u8::from(c.active[l]) << 1);
+    }
+    h.finish()
 }
 
 impl<'m> Rounds<'m> {
@@ -384,6 +445,7 @@ impl<'m> Rounds<'m> {
             done: Vec::new(),
             logs: Vec::new(),
             frozen_then: vec![false; mesh.vertices.len()],
+            shifted_done: Vec::new(),
         }
     }
 
@@ -418,9 +480,9 @@ impl<'m> Rounds<'m> {
             })
             .collect();
         let done = (!self.done.is_empty()).then_some((&self.done[..], &self.logs[..], &redo[..]));
-        let (mut state, outs) = state.phase(plan, frozen, None, opts, origin, done);
+        let (mut state, outs) = state.phase(plan, frozen, None, opts, origin, done, None);
         let first = self.done.is_empty();
-        for (r, (result, log)) in outs.into_iter().enumerate() {
+        for (r, (result, log, _)) in outs.into_iter().enumerate() {
             if first {
                 self.done.push(result);
                 self.logs.push(log);
@@ -440,8 +502,17 @@ impl<'m> Rounds<'m> {
             let shifted = super::regions::plan(&lookup, Some(&grid.shifted()));
             state.pos = lookup.vertices;
             state.slots = lookup.triangles;
-            let (next, _) = state.phase(&shifted, frozen, Some(&active), opts, origin, None);
+            let cache = Some(&self.shifted_done[..]);
+            let (next, outs) =
+                state.phase(&shifted, frozen, Some(&active), opts, origin, None, cache);
             state = next;
+            // Kept for the next round, whose regions of the same cubes and copies take them.
+            self.shifted_done = shifted
+                .regions
+                .iter()
+                .zip(outs)
+                .map(|(region, (result, _, print))| (region.key, print, result))
+                .collect();
             for (a, &m) in active.iter_mut().zip(&shifted.movable) {
                 *a = !m;
             }
@@ -526,12 +597,6 @@ impl<'m> Rounds<'m> {
     }
 }
 
-/// Whether triangle `id` of the mesh is one of `region`'s own (not its halo): the own ones
-/// come first in `ids`, in increasing order.
-fn id_is_own(region: &Region, id: u32) -> bool {
-    region.ids[..region.own].binary_search(&id).is_ok()
-}
-
 /// A region's copy of the mesh, ready to run: its vertices (positions, quadrics,
 /// normals), its triangles, and which of its vertices may move and are tried first.
 fn region_copy(
@@ -568,7 +633,7 @@ fn region_copy(
 
 /// What a region did, in global indices: its movable vertices that collapsed (into
 /// which) and that moved (where, with their quadric and normal), its own triangles that
-/// are left (numbers and corners), and its passes and collapses.
+/// are left (their places among its own and their corners), and its passes and collapses.
 #[derive(Clone, Default)]
 struct RegionResult {
     parents: Vec<(u32, u32)>,
@@ -606,8 +671,9 @@ fn run_region(
         }
     }
     for (t, &id) in c.tris.iter().zip(&c.ids) {
-        if id_is_own(region, id) {
-            out.tris.push((id, t.map(|k| region.verts[k as usize])));
+        if let Ok(k) = region.ids[..region.own].binary_search(&id) {
+            out.tris
+                .push((k as u32, t.map(|k| region.verts[k as usize])));
         }
     }
     (out, (c.log, c.pass_ends))
