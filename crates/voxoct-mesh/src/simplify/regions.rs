@@ -104,7 +104,10 @@ pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>) -> Plan {
             local_of[v as usize] = i as u32;
         }
     }
-    let fans = (count > 1).then(|| VertexFans::new(nv, &mesh.triangles, |_| true, false));
+    // The fans of the vertices shared by regions (complete: every triangle around such a
+    // vertex is kept), to find the halos; the other triangles are left out.
+    let mixed = |t: [u32; 3]| t.iter().any(|&k| pure[k as usize] == MIXED);
+    let fans = (count > 1).then(|| VertexFans::new(nv, &mesh.triangles, mixed, false));
     let mut regions = Vec::new();
     par::map_into(&mut regions, count, |r| {
         let own = &order.1[order.0[r]..order.0[r + 1]];
@@ -260,7 +263,7 @@ fn assign(mesh: &Mesh, grid: Option<&Grid>) -> (Vec<u32>, Vec<u32>) {
             cubes.push(c as u32);
         }
     }
-    (keys.iter().map(|&k| used[k as usize]).collect(), cubes)
+    (par::map(&keys, |&k| used[k as usize]), cubes)
 }
 
 /// The result of one round over the whole mesh (global indices, `tris` in mesh order).
