@@ -201,7 +201,7 @@ pub(crate) fn simplify_in_regions(
     };
     let mut rounds = regions::Rounds::new(&original, opts, per_region);
     // The latest round's result and every self-intersecting triangle of it.
-    let mut last: Option<(Mesh, Vec<u32>)> = None;
+    let mut last: Option<recheck::Previous> = None;
     loop {
         let regions::Round {
             pos,
@@ -218,7 +218,7 @@ pub(crate) fn simplify_in_regions(
         let all = match &last {
             _ if collapses == 0 => Vec::new(),
             None => crate::selfx::self_intersecting_triangles(&candidate),
-            Some((prev, prev_all)) => recheck::intersecting_since(&candidate, prev, prev_all),
+            Some(prev) => recheck::intersecting_since(&candidate, prev),
         };
         let bad = new_intersections(&candidate, &moved, &all);
         stats.new_intersections = bad.len();
@@ -270,7 +270,7 @@ pub(crate) fn simplify_in_regions(
                 stats.frozen_vertices += 1;
             }
         }
-        last = Some((candidate, all));
+        last = Some(recheck::Previous::new(candidate, all));
     }
 }
 

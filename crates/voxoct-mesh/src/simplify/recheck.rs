@@ -18,14 +18,53 @@ use crate::mesh::Mesh;
 /// Cells per axis of the grid of suspects, at most.
 const MAX_DIM: f32 = 256.0;
 
-/// Every self-intersecting triangle of `mesh` (increasing), given the mesh `prev` of the
-/// round before (the same vertex numbering) and every self-intersecting triangle of it.
-pub(super) fn intersecting_since(mesh: &Mesh, prev: &Mesh, prev_bad: &[u32]) -> Vec<u32> {
+/// What [`intersecting_since`] needs of a round's result: its triangles, the positions of
+/// the vertices they use (not of the others: a fraction of the input's), and every
+/// self-intersecting triangle.
+pub(super) struct Previous {
+    nv: usize,
+    triangles: Vec<[u32; 3]>,
+    /// The vertices the triangles use, increasing, and their positions.
+    used: Vec<u32>,
+    at: Vec<Vec3>,
+    bad: Vec<u32>,
+}
+
+impl Previous {
+    /// The round's result `mesh` and every self-intersecting triangle of it.
+    pub(super) fn new(mesh: Mesh, bad: Vec<u32>) -> Self {
+        let nv = mesh.vertices.len();
+        let mut is_used = vec![false; nv];
+        for t in &mesh.triangles {
+            for &k in t {
+                is_used[k as usize] = true;
+            }
+        }
+        let used: Vec<u32> = (0..nv as u32).filter(|&k| is_used[k as usize]).collect();
+        let at = used.iter().map(|&k| mesh.vertices[k as usize]).collect();
+        Self {
+            nv,
+            triangles: mesh.triangles,
+            used,
+            at,
+            bad,
+        }
+    }
+
+    /// The position of vertex `k` if a triangle uses it.
+    fn position(&self, k: u32) -> Option<Vec3> {
+        self.used.binary_search(&k).ok().map(|i| self.at[i])
+    }
+}
+
+/// Every self-intersecting triangle of `mesh` (increasing), given the result of the round
+/// before (the same vertex numbering).
+pub(super) fn intersecting_since(mesh: &Mesh, prev: &Previous) -> Vec<u32> {
     let nv = mesh.vertices.len();
-    if prev.vertices.len() != nv {
+    if prev.nv != nv {
         return crate::selfx::self_intersecting_triangles(mesh);
     }
-    let suspect = suspects(mesh, prev, prev_bad);
+    let suspect = suspects(mesh, prev);
     let boxes: Vec<[Vec3; 2]> = mesh
         .triangles
         .iter()
@@ -108,8 +147,8 @@ pub(super) fn intersecting_since(mesh: &Mesh, prev: &Mesh, prev_bad: &[u32]) -> 
 }
 
 /// Per triangle of `mesh`: whether `prev` lacks it (same corners in the same cyclic order,
-/// at the same positions) or has it among `prev_bad`.
-fn suspects(mesh: &Mesh, prev: &Mesh, prev_bad: &[u32]) -> Vec<bool> {
+/// at the same positions) or has it among its self-intersecting ones.
+fn suspects(mesh: &Mesh, prev: &Previous) -> Vec<bool> {
     let nv = mesh.vertices.len();
     // `prev`'s triangles by their smallest corner, each rotated to start there.
     let rotated = |t: [u32; 3]| {
@@ -137,11 +176,14 @@ fn suspects(mesh: &Mesh, prev: &Mesh, prev_bad: &[u32]) -> Vec<bool> {
     }
     drop(cursor);
     let mut was_bad = vec![false; prev.triangles.len()];
-    for &t in prev_bad {
+    for &t in &prev.bad {
         was_bad[t as usize] = true;
     }
     let bits = |p: Vec3| p.to_array().map(f32::to_bits);
-    let same_place = |k: u32| bits(mesh.vertices[k as usize]) == bits(prev.vertices[k as usize]);
+    let same_place = |k: u32| {
+        prev.position(k)
+            .is_some_and(|p| bits(mesh.vertices[k as usize]) == bits(p))
+    };
     mesh.triangles
         .iter()
         .map(|t| {
@@ -207,21 +249,24 @@ mod tests {
         poked.vertices[tip] = Vec3::new(0.5, 0.0, 0.0);
         let want = whole(&poked);
         assert!(!want.is_empty());
-        assert_eq!(intersecting_since(&poked, &a, &[]), want);
+        let since = |m: &Mesh, prev: &Mesh, bad: &[u32]| {
+            intersecting_since(m, &Previous::new(prev.clone(), bad.to_vec()))
+        };
+        assert_eq!(since(&poked, &a, &[]), want);
         // Back: the local test sees that the pair is gone.
-        assert_eq!(intersecting_since(&a, &poked, &want), whole(&a));
+        assert_eq!(since(&a, &poked, &want), whole(&a));
         // The same triangles with their corners rotated are the same triangles.
         let mut moved = poked.clone();
         for t in moved.triangles.iter_mut().take(30) {
             *t = [t[1], t[2], t[0]];
         }
-        assert_eq!(intersecting_since(&moved, &poked, &want), whole(&moved));
+        assert_eq!(since(&moved, &poked, &want), whole(&moved));
         let mut shifted = a.clone();
         for p in shifted.vertices.iter_mut().take(base as usize) {
             *p += Vec3::new(1.0, 0.0, 0.0);
         }
         let want = whole(&shifted);
         assert!(!want.is_empty());
-        assert_eq!(intersecting_since(&shifted, &a, &[]), want);
+        assert_eq!(since(&shifted, &a, &[]), want);
     }
 }

@@ -527,7 +527,7 @@ impl<'m> Rounds<'m> {
             nrm,
             mut parent,
             mut moved,
-            slots,
+            mut slots,
             passes,
             collapses,
         } = state;
@@ -558,23 +558,21 @@ impl<'m> Rounds<'m> {
             }
         }
         let at = |g: &u32| *g as usize;
+        for t in &mut slots {
+            *t = t.map(|k| local_of[k as usize]);
+        }
+        drop(local_of);
+        // The quadrics (the largest arrays) are compacted in place.
         let mut seam = Collapser::new(
             Mesh {
                 vertices: live.iter().map(|g| pos[at(g)]).collect(),
-                triangles: slots
-                    .iter()
-                    .map(|t| t.map(|k| local_of[k as usize]))
-                    .collect(),
+                triangles: slots,
             },
-            (
-                live.iter().map(|g| quad[at(g)]).collect(),
-                live.iter().map(|g| nrm[at(g)]).collect(),
-            ),
+            (compacted(quad, &live), compacted(nrm, &live)),
             live.iter().map(|g| frozen[at(g)]).collect(),
             opts,
             origin,
         );
-        drop((quad, nrm, slots, local_of));
         seam.active = live.iter().map(|g| active[at(g)]).collect();
         seam.run();
         for (l, &g) in live.iter().enumerate() {
@@ -644,6 +642,16 @@ struct RegionResult {
     tris: Vec<(u32, [u32; 3])>,
     passes: usize,
     collapses: usize,
+}
+
+/// `items` with only the items at the increasing indices `keep`, in place.
+fn compacted<T: Copy>(mut items: Vec<T>, keep: &[u32]) -> Vec<T> {
+    for (l, &g) in keep.iter().enumerate() {
+        items[l] = items[g as usize];
+    }
+    items.truncate(keep.len());
+    items.shrink_to_fit();
+    items
 }
 
 /// Runs a region's copy, or replays `replay` on it; returns its result and its collapses.
