@@ -58,6 +58,8 @@ pub(super) struct Collapser {
     pub(super) ring_u: Vec<u32>,
     pub(super) ring_w: Vec<u32>,
     pub(super) fan: Vec<FanTriangle>,
+    /// Whether to evaluate the candidates in one task (a region among others).
+    pub(super) one_task: bool,
     /// Stamps of [`Collapser::link_condition`] (one per vertex) and the latest.
     mark: Vec<u32>,
     stamp: u32,
@@ -97,6 +99,7 @@ impl Collapser {
             ring_u: Vec::new(),
             ring_w: Vec::new(),
             fan: Vec::new(),
+            one_task: false,
             mark: vec![0; nv],
             stamp: 0,
         }
@@ -177,7 +180,9 @@ impl Collapser {
     pub(super) fn candidates(&self, out: &mut Vec<Candidate>) {
         out.clear();
         let tris = &self.tris;
-        par::extend_in_order(out, tris.len(), 4096, |i, out| {
+        // One of several regions runs on one thread (the regions run in parallel).
+        let per_task = if self.one_task { usize::MAX } else { 4096 };
+        par::extend_in_order(out, tris.len(), per_task, |i, out| {
             let t = tris[i];
             for k in 0..3 {
                 let (u, w) = (t[k], t[(k + 1) % 3]);

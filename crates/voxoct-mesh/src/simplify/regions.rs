@@ -624,6 +624,7 @@ fn region_copy(
         .collect();
     let mut c = Collapser::new(local, quadrics, fixed, opts, origin);
     c.ids.clone_from(&region.ids);
+    c.one_task = plan.regions.len() > 1;
     if let Some(active) = active {
         for (a, &g) in c.active.iter_mut().zip(verts) {
             *a = active[g as usize];
