@@ -126,6 +126,13 @@ pub(crate) fn extend_in_order<T: Send>(
     {
         let per_task = per_task.max(1);
         let tasks = n.div_ceil(per_task);
+        if tasks <= 1 {
+            // One task: no thread pool, no part to copy.
+            for i in 0..n {
+                f(i, dst);
+            }
+            return;
+        }
         let batch = 16 * rayon::current_num_threads().max(1);
         let mut parts: Vec<Vec<T>> = Vec::new();
         for first in (0..tasks).step_by(batch) {

@@ -57,7 +57,12 @@ pub(super) struct Collapser {
     pub(super) pass_ends: Vec<usize>,
     pub(super) ring_u: Vec<u32>,
     pub(super) ring_w: Vec<u32>,
-    pub(super) normals: Vec<(Vec3, u32, u32)>,
+    pub(super) fan: Vec<FanTriangle>,
+    /// Whether to evaluate the candidates in one task (a region among others).
+    pub(super) one_task: bool,
+    /// Stamps of [`Collapser::link_condition`] (one per vertex) and the latest.
+    mark: Vec<u32>,
+    stamp: u32,
 }
 
 impl Collapser {
@@ -93,7 +98,10 @@ impl Collapser {
             pass_ends: Vec::new(),
             ring_u: Vec::new(),
             ring_w: Vec::new(),
-            normals: Vec::new(),
+            fan: Vec::new(),
+            one_task: false,
+            mark: vec![0; nv],
+            stamp: 0,
         }
     }
 
@@ -172,7 +180,9 @@ impl Collapser {
     pub(super) fn candidates(&self, out: &mut Vec<Candidate>) {
         out.clear();
         let tris = &self.tris;
-        par::extend_in_order(out, tris.len(), 4096, |i, out| {
+        // One of several regions runs on one thread (the regions run in parallel).
+        let per_task = if self.one_task { usize::MAX } else { 4096 };
+        par::extend_in_order(out, tris.len(), per_task, |i, out| {
             let t = tris[i];
             for k in 0..3 {
                 let (u, w) = (t[k], t[(k + 1) % 3]);
@@ -295,121 +305,177 @@ impl Collapser {
     pub(super) fn allowed(&mut self, u: u32, w: u32, p: Vec3) -> bool {
         let mut ring_u = std::mem::take(&mut self.ring_u);
         let mut ring_w = std::mem::take(&mut self.ring_w);
-        let mut normals = std::mem::take(&mut self.normals);
-        normals.clear();
-        let mut old_sum = Vec3::ZERO;
+        let mut fan = std::mem::take(&mut self.fan);
         let ok = self.ring(u, &mut ring_u)
             && self.ring(w, &mut ring_w)
-            && link_condition(w, &ring_u, &ring_w)
-            && self.shapes_ok(u, w, p, &mut normals, &mut old_sum)
-            && self.shapes_ok(w, u, p, &mut normals, &mut old_sum)
-            && {
-                // The new fan stays on the side the old one faced (no fold within the fan).
-                let len = old_sum.length();
-                let mut flat = true;
-                let ok = normals.iter().all(|n| {
-                    let (d, l) = (n.0.dot(old_sum), len * n.0.length());
-                    flat &= d > FLAT_COS * l;
-                    d > FAN_COS_MIN * l
-                });
-                // A nearly flat new fan cannot fold onto its neighbours unless they were
-                // already folded; the global test catches what this skips.
-                ok && (flat || self.no_local_folds(u, w, p, &normals))
-            };
+            && self.link_condition(w, &ring_u, &ring_w)
+            && self.new_fan_ok(u, w, p, &mut fan);
         self.ring_u = ring_u;
         self.ring_w = ring_w;
-        self.normals = normals;
+        self.fan = fan;
         ok
     }
 
-    /// The neighbours of `v` (each once on a closed manifold); false if unusually many.
+    /// The neighbours of `v` (each once on a closed manifold); false if fewer than three.
     pub(super) fn ring(&self, v: u32, out: &mut Vec<u32>) -> bool {
         out.clear();
         out.extend(self.live_corners(v).map(|[n, _]| n));
         out.len() >= 3
     }
 
-    /// Whether moving `v` to `p` keeps the normal and quality of every triangle of `v` that
-    /// does not also hold `other`.
-    pub(super) fn shapes_ok(
-        &self,
-        v: u32,
-        other: u32,
-        p: Vec3,
-        normals: &mut Vec<(Vec3, u32, u32)>,
-        old_sum: &mut Vec3,
-    ) -> bool {
-        let cos_min = MAX_NORMAL_TURN_DEG.to_radians().cos();
-        let a = self.pos[v as usize];
-        let ends = self.nrm[v as usize] + self.nrm[other as usize];
-        for [bi, ci] in self.live_corners(v) {
-            if bi == other || ci == other {
-                continue;
+    /// The link condition for a closed manifold: `w` is a neighbour of `u`, they share
+    /// exactly two neighbours, and are not both of valence 3 (a tetrahedron would fold onto
+    /// itself). Common neighbours are found with stamps (one write and one read each).
+    fn link_condition(&mut self, w: u32, ring_u: &[u32], ring_w: &[u32]) -> bool {
+        if ring_u.len() == 3 && ring_w.len() == 3 {
+            return false;
+        }
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.mark.iter_mut().for_each(|m| *m = 0);
+            self.stamp = 1;
+        }
+        for &x in ring_w {
+            self.mark[x as usize] = self.stamp;
+        }
+        let (mut common, mut has_w) = (0, false);
+        for &x in ring_u {
+            if x == w {
+                has_w = true;
+            } else if self.mark[x as usize] == self.stamp {
+                common += 1;
             }
-            let b = self.pos[bi as usize];
-            let c = self.pos[ci as usize];
-            let n_old = (b - a).cross(c - a);
+        }
+        has_w && common == 2
+    }
+
+    /// Whether moving `u` and `w` to `p` keeps the normal and quality of every triangle of
+    /// either that does not hold both (`fan` receives them, `u`'s first), the new fan faces
+    /// the way the old one did, and (unless it is nearly flat) it does not fold onto the
+    /// triangles around it. Every check is a conjunction: the first failure ends the test.
+    fn new_fan_ok(&self, u: u32, w: u32, p: Vec3, fan: &mut Vec<FanTriangle>) -> bool {
+        fan.clear();
+        let mut old_sum = Vec3::ZERO;
+        for (v, other) in [(u, w), (w, u)] {
+            let a = self.pos[v as usize];
+            for [b, c] in self.live_corners(v) {
+                if b == other || c == other {
+                    continue;
+                }
+                let n_old = (self.pos[b as usize] - a).cross(self.pos[c as usize] - a);
+                old_sum += n_old;
+                fan.push(FanTriangle {
+                    v,
+                    b,
+                    c,
+                    n_old,
+                    n_new: Vec3::ZERO,
+                    len_new: 0.0,
+                });
+            }
+        }
+        let len = old_sum.length();
+        let ends = self.nrm[u as usize] + self.nrm[w as usize];
+        let cos_turn_min = MAX_NORMAL_TURN_DEG.to_radians().cos();
+        let mut flat = true;
+        for t in fan.iter_mut() {
+            let a = self.pos[t.v as usize];
+            let b = self.pos[t.b as usize];
+            let c = self.pos[t.c as usize];
             let n_new = (b - p).cross(c - p);
-            let (lo, ln) = (n_old.length(), n_new.length());
-            if !greater(n_old.dot(n_new), cos_min * lo * ln) {
+            let d = t.n_old.dot(n_new);
+            // A flip (cheap to see) fails the turn test below whatever the lengths.
+            if !greater(d, 0.0) {
                 return false;
             }
+            let (lo, ln) = (t.n_old.length(), n_new.length());
+            if !greater(d, cos_turn_min * lo * ln) {
+                return false;
+            }
+            // The new fan stays on the side the old one faced (no fold within the fan).
+            let (d, l) = (n_new.dot(old_sum), len * ln);
+            if !greater(d, FAN_COS_MIN * l) {
+                return false;
+            }
+            flat &= d > FLAT_COS * l;
             // Never against the original surface: the new triangle faces the way the
             // original triangles merged into its corners face on the whole.
-            let reference = ends + self.nrm[bi as usize] + self.nrm[ci as usize];
+            let reference = ends + self.nrm[t.b as usize] + self.nrm[t.c as usize];
             if !greater(
                 n_new.dot(reference),
                 REFERENCE_COS_MIN * ln * reference.length(),
             ) {
                 return false;
             }
-            *old_sum += n_old;
-            normals.push((n_new, bi, ci));
             let q_new = quality(ln, p, b, c);
             if q_new < MIN_QUALITY_ABSOLUTE || (q_new < MIN_QUALITY && q_new < quality(lo, a, b, c))
             {
                 return false;
             }
+            t.n_new = n_new;
+            t.len_new = ln;
         }
-        true
+        // A nearly flat new fan cannot fold onto its neighbours unless they were already
+        // folded; the global test catches what this skips.
+        flat || self.no_local_folds(u, w, p, fan)
     }
+}
+
+/// A triangle of the fan of a collapse: corner `v` (an end of the edge) with outer
+/// vertices `b` and `c`, its normal (twice its area) before and after.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct FanTriangle {
+    v: u32,
+    b: u32,
+    c: u32,
+    n_old: Vec3,
+    n_new: Vec3,
+    len_new: f32,
 }
 
 impl Collapser {
     /// Whether the new fan (`p` with the given outer edges and normals) stays clear of the
     /// other triangles around its outer vertices: every such pair facing away from each
     /// other is tested exactly (pairs sharing an outer edge must not fold flat).
-    pub(super) fn no_local_folds(&self, u: u32, w: u32, p: Vec3, fan: &[(Vec3, u32, u32)]) -> bool {
+    pub(super) fn no_local_folds(&self, u: u32, w: u32, p: Vec3, fan: &[FanTriangle]) -> bool {
         let pd = p.as_dvec3();
         let at = |k: u32| self.pos[k as usize].as_dvec3();
         // Each outer vertex x once (as the first outer vertex of its new triangle), its old
         // triangles (those of the collapsed edge's fans excepted) against the two new
         // triangles that hold x.
-        for (i, &(_, x, _)) in fan.iter().enumerate() {
-            let Some(j) = fan.iter().position(|f| f.2 == x) else {
+        for fi in fan {
+            let x = fi.b;
+            let Some(fj) = fan.iter().find(|f| f.c == x) else {
                 continue;
             };
+            let a0 = self.pos[x as usize];
             for [n, q] in self.live_corners(x) {
-                let tt = [x, n, q];
-                if tt.contains(&u) || tt.contains(&w) {
+                // `x` is an outer vertex, neither `u` nor `w`.
+                if n == u || n == w || q == u || q == w {
                     continue;
                 }
-                let [a0, a1, a2] = tt.map(|k| self.pos[k as usize]);
+                let (a1, a2) = (self.pos[n as usize], self.pos[q as usize]);
                 let nt = (a1 - a0).cross(a2 - a0);
-                for &(nn, b, c) in [&fan[i], &fan[j]] {
-                    let d = nn.dot(nt);
+                let (di, dj) = (fi.n_new.dot(nt), fj.n_new.dot(nt));
+                // Most pairs face the same way: nothing more to test (and no square root).
+                if di >= 0.0 && dj >= 0.0 {
+                    continue;
+                }
+                let tt = [x, n, q];
+                for (f, d) in [(fi, di), (fj, dj)] {
                     if d >= 0.0 {
                         continue;
                     }
+                    let (b, c) = (f.b, f.c);
                     if tt.contains(&b) && tt.contains(&c) {
                         // Sharing an outer edge: they must not fold flat onto each other.
-                        if d < -FOLD_COS * nn.length() * nt.length() {
+                        if d < -FOLD_COS * f.len_new * nt.length() {
                             return false;
                         }
                         continue;
                     }
                     let tri_new = [pd, at(b), at(c)];
-                    let tri_old = tt.map(at);
+                    let tri_old = [at(x), at(n), at(q)];
                     // The old triangle's edge opposite x, and the new triangle's edge from
                     // p to its other outer vertex.
                     let other = if b == x { c } else { b };
@@ -451,21 +517,6 @@ pub(super) fn quality(cross_len: f32, a: Vec3, b: Vec3, c: Vec3) -> f32 {
     } else {
         0.0
     }
-}
-
-/// The link condition for a closed manifold: `u` and `w` share exactly two neighbours, and
-/// are not both of valence 3 (a tetrahedron would fold onto itself).
-pub(super) fn link_condition(w: u32, ring_u: &[u32], ring_w: &[u32]) -> bool {
-    if ring_u.len() == 3 && ring_w.len() == 3 {
-        return false;
-    }
-    let mut common = 0;
-    for &x in ring_u {
-        if x != w && ring_w.contains(&x) {
-            common += 1;
-        }
-    }
-    common == 2
 }
 
 /// The candidates' indices ordered by the leading bits of their keys (a counting sort:

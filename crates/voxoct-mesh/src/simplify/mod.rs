@@ -38,9 +38,13 @@
 //!   and pass by pass, without those that touch a frozen vertex and with every check made
 //!   again (no candidate is evaluated or sorted again), in the regions that hold a newly
 //!   frozen vertex only (the others' results do not depend on anything outside them and
-//!   are kept); the other phases run again. After [`MAX_RETRIES`] rounds the input is left
+//!   are kept); the other phases run again, except that a second-phase region whose copy
+//!   is the same as in the round before (by a 64-bit fingerprint) takes its result from
+//!   there. After [`MAX_RETRIES`] rounds the input is left
 //!   unchanged. Intersections the input already had are left as they are (their triangles
-//!   do not count as changed).
+//!   do not count as changed). A later round's test is made only around the triangles that
+//!   differ from the round before's or that its test found (the `recheck` module): it
+//!   finds exactly what the test of the whole mesh would.
 //!
 //! # Speed
 //! Collapses are made in passes (as meshoptimizer does): each pass evaluates the collapse
@@ -65,6 +69,7 @@ use crate::mesh::{Mesh, TopologyError};
 
 mod collapse;
 mod quadric;
+mod recheck;
 mod regions;
 
 use quadric::*;
@@ -195,6 +200,8 @@ pub(crate) fn simplify_in_regions(
         per_region
     };
     let mut rounds = regions::Rounds::new(&original, opts, per_region);
+    // The latest round's result and every self-intersecting triangle of it.
+    let mut last: Option<recheck::Previous> = None;
     loop {
         let regions::Round {
             pos,
@@ -208,11 +215,12 @@ pub(crate) fn simplify_in_regions(
             vertices: pos,
             triangles: tris,
         };
-        let bad = if collapses == 0 {
-            Vec::new()
-        } else {
-            new_intersections(&candidate, &moved)
+        let all = match &last {
+            _ if collapses == 0 => Vec::new(),
+            None => crate::selfx::self_intersecting_triangles(&candidate),
+            Some(prev) => recheck::intersecting_since(&candidate, prev),
         };
+        let bad = new_intersections(&candidate, &moved, &all);
         stats.new_intersections = bad.len();
         if bad.is_empty() {
             let mut candidate = candidate;
@@ -262,6 +270,7 @@ pub(crate) fn simplify_in_regions(
                 stats.frozen_vertices += 1;
             }
         }
+        last = Some(recheck::Previous::new(candidate, all));
     }
 }
 
@@ -293,18 +302,17 @@ fn renumbered_by_first_use(mesh: &Mesh) -> Mesh {
     }
 }
 
-/// The changed triangles (with a moved vertex) that cut through another triangle, by the
-/// exact check ([`crate::selfx`]), in increasing order. Every new intersection involves a
-/// changed triangle; intersections between unchanged ones were in the input.
-fn new_intersections(mesh: &Mesh, moved: &[bool]) -> Vec<u32> {
+/// The changed triangles (with a moved vertex) among `all`, the triangles that cut through
+/// another one by the exact check ([`crate::selfx`]), in increasing order. Every new
+/// intersection involves a changed triangle; intersections between unchanged ones were in
+/// the input.
+fn new_intersections(mesh: &Mesh, moved: &[bool], all: &[u32]) -> Vec<u32> {
     let changed = |t: u32| {
         mesh.triangles[t as usize]
             .iter()
             .any(|&k| moved[k as usize])
     };
-    let mut out = crate::selfx::self_intersecting_triangles(mesh);
-    out.retain(|&t| changed(t));
-    out
+    all.iter().copied().filter(|&t| changed(t)).collect()
 }
 
 #[cfg(test)]

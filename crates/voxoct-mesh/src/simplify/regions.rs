@@ -51,6 +51,9 @@ pub(super) struct Region {
     ids: Vec<u32>,
     /// How many of `tris` are its own.
     own: usize,
+    /// The number of its cube in the grid (0 without a grid): the same region in another
+    /// round.
+    key: u32,
 }
 
 /// How the mesh is split: which vertices each region may move, and the regions' copies.
@@ -64,8 +67,8 @@ pub(super) struct Plan {
 /// the cube of its centroid (one region without a grid).
 pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>) -> Plan {
     let nv = mesh.vertices.len();
-    let region_of = assign(mesh, grid);
-    let count = region_of.iter().max().map_or(0, |&r| r as usize + 1);
+    let (region_of, keys) = assign(mesh, grid);
+    let count = keys.len();
     // The region of each vertex's triangles, or MIXED.
     let mut pure = vec![UNUSED; nv];
     for (t, &r) in mesh.triangles.iter().zip(&region_of) {
@@ -101,7 +104,10 @@ pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>) -> Plan {
             local_of[v as usize] = i as u32;
         }
     }
-    let fans = (count > 1).then(|| VertexFans::new(nv, &mesh.triangles, |_| true, false));
+    // The fans of the vertices shared by regions (complete: every triangle around such a
+    // vertex is kept), to find the halos; the other triangles are left out.
+    let mixed = |t: [u32; 3]| t.iter().any(|&k| pure[k as usize] == MIXED);
+    let fans = (count > 1).then(|| VertexFans::new(nv, &mesh.triangles, mixed, false));
     let mut regions = Vec::new();
     par::map_into(&mut regions, count, |r| {
         let own = &order.1[order.0[r]..order.0[r + 1]];
@@ -149,6 +155,7 @@ pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>) -> Plan {
             ids,
             own: own.len(),
             verts,
+            key: keys[r],
         }
     });
     Plan { movable, regions }
@@ -224,10 +231,15 @@ impl Grid {
 }
 
 /// The region of every triangle: the cube of its centroid (all 0 without a grid), the
-/// cubes that hold none skipped.
-fn assign(mesh: &Mesh, grid: Option<&Grid>) -> Vec<u32> {
+/// cubes that hold none skipped; and each region's cube.
+fn assign(mesh: &Mesh, grid: Option<&Grid>) -> (Vec<u32>, Vec<u32>) {
     let Some(&Grid { lo, edge, dims }) = grid else {
-        return vec![0; mesh.triangles.len()];
+        let keys = if mesh.triangles.is_empty() {
+            Vec::new()
+        } else {
+            vec![0]
+        };
+        return (vec![0; mesh.triangles.len()], keys);
     };
     let at = |k: u32| mesh.vertices[k as usize];
     let cell = |t: &[u32; 3]| {
@@ -244,14 +256,14 @@ fn assign(mesh: &Mesh, grid: Option<&Grid>) -> Vec<u32> {
     for &k in &keys {
         used[k as usize] = 0;
     }
-    let mut n = 0;
-    for u in &mut used {
+    let mut cubes = Vec::new();
+    for (c, u) in used.iter_mut().enumerate() {
         if *u == 0 {
-            *u = n;
-            n += 1;
+            *u = cubes.len() as u32;
+            cubes.push(c as u32);
         }
     }
-    keys.iter().map(|&k| used[k as usize]).collect()
+    (par::map(&keys, |&k| used[k as usize]), cubes)
 }
 
 /// The result of one round over the whole mesh (global indices, `tris` in mesh order).
@@ -301,8 +313,8 @@ impl State {
         for &id in &region.ids[..region.own] {
             self.slots[id as usize] = [u32::MAX; 3];
         }
-        for &(id, t) in &out.tris {
-            self.slots[id as usize] = t;
+        for &(k, t) in &out.tris {
+            self.slots[region.ids[k as usize] as usize] = t;
         }
     }
 
@@ -313,7 +325,9 @@ impl State {
 
     /// Runs every region of `plan` on this state (the vertices `active` first tried,
     /// `None`: all), or, where `done` holds a region's result, takes it as it is, or replays
-    /// `logs` on the regions `redo` names; returns the regions' results and logs.
+    /// `logs` on the regions `redo` names, or, where `cache` holds the result of a region
+    /// of the same cube whose copy had the same fingerprint, takes that; returns the
+    /// regions' results, logs and fingerprints (0 without `cache`).
     #[allow(clippy::too_many_arguments)]
     fn phase(
         self,
@@ -323,14 +337,15 @@ impl State {
         opts: &Simplify,
         origin: DVec3,
         done: Option<(&[RegionResult], &[RoundLog], &[bool])>,
-    ) -> (Self, Vec<(RegionResult, RoundLog)>) {
+        cache: Option<&[Cached]>,
+    ) -> (Self, Vec<(RegionResult, RoundLog, u64)>) {
         let shared = Mutex::new(self);
         let mut out = Vec::new();
         par::map_into(&mut out, plan.regions.len(), |r| {
             let region = &plan.regions[r];
             let result = match done {
                 Some((results, _, redo)) if !redo[r] => {
-                    (results[r].clone(), (Vec::new(), Vec::new()))
+                    (results[r].clone(), (Vec::new(), Vec::new()), 0)
                 }
                 _ => {
                     let copy = {
@@ -338,7 +353,18 @@ impl State {
                         region_copy(&st, region, plan, frozen, active, opts, origin)
                     };
                     let replay = done.map(|(_, logs, _)| &logs[r]);
-                    run_region(copy, region, plan, frozen, replay)
+                    let print = cache.map_or(0, |_| fingerprint(&copy, region));
+                    let hit = cache.and_then(|c| {
+                        let i = c.binary_search_by_key(&region.key, |e| e.0).ok()?;
+                        (c[i].1 == print).then(|| c[i].2.clone())
+                    });
+                    match hit {
+                        Some(result) => (result, (Vec::new(), Vec::new()), print),
+                        None => {
+                            let (result, log) = run_region(copy, region, plan, frozen, replay);
+                            (result, log, print)
+                        }
+                    }
                 }
             };
             let mut st = shared.lock().unwrap_or_else(PoisonError::into_inner);
@@ -358,7 +384,9 @@ impl State {
 /// the second phase could not move). A later round replays the first phase's collapses
 /// without the frozen vertices in the regions that hold a vertex frozen since (the other
 /// regions' results are kept: their movable vertices that moved and the collapsed ones,
-/// and their triangles, a fraction of the mesh) and runs the other two phases again.
+/// and their triangles, a fraction of the mesh) and runs the other two phases again, the
+/// second one's regions whose copies have the fingerprint of the round before's in the same
+/// cube taking that round's result (a run depends on nothing but its copy).
 pub(super) struct Rounds<'m> {
     mesh: &'m Mesh,
     grid: Option<Grid>,
@@ -369,6 +397,42 @@ pub(super) struct Rounds<'m> {
     logs: Vec<RoundLog>,
     /// The frozen vertices of the latest round.
     frozen_then: Vec<bool>,
+    /// The second phase's results of the latest round, by cube (increasing).
+    shifted_done: Vec<Cached>,
+}
+
+/// A region's cube, the fingerprint of its copy and its result.
+type Cached = (u32, u64, RegionResult);
+
+/// A 64-bit fingerprint (SipHash) of everything a region's run depends on and its result
+/// names: its copy (positions, triangles and their order, quadrics, normals, the vertices
+/// that may not move and those tried first), its vertices' global numbers and how many of
+/// its triangles are its own. The options and the quadrics' origin are the same in every
+/// round.
+fn fingerprint(c: &Collapser, region: &Region) -> u64 {
+    use std::hash::Hasher;
+    let mut h = std::hash::DefaultHasher::new();
+    h.write_usize(region.own);
+    h.write_usize(c.tris.len());
+    for t in &c.tris {
+        h.write_u64(u64::from(t[0]) | u64::from(t[1]) << 32);
+        h.write_u32(t[2]);
+    }
+    h.write_usize(region.verts.len());
+    for (l, &g) in region.verts.iter().enumerate() {
+        let p = c.pos[l];
+        let n = c.nrm[l];
+        h.write_u32(g);
+        h.write_u64(u64::from(p.x.to_bits()) | u64::from(p.y.to_bits()) << 32);
+        h.write_u64(u64::from(p.z.to_bits()) | u64::from(n.x.to_bits()) << 32);
+        h.write_u64(u64::from(n.y.to_bits()) | u64::from(n.z.to_bits()) << 32);
+        for q in &c.quad[l].q {
+            h.write_u64(q.to_bits());
+        }
+        h.write_u64(c.quad[l].w.to_bits());
+        h.write_u8(u8::from(c.frozen[l]) | u8::from(c.active[l]) << 1);
+    }
+    h.finish()
 }
 
 impl<'m> Rounds<'m> {
@@ -384,6 +448,7 @@ impl<'m> Rounds<'m> {
             done: Vec::new(),
             logs: Vec::new(),
             frozen_then: vec![false; mesh.vertices.len()],
+            shifted_done: Vec::new(),
         }
     }
 
@@ -418,9 +483,9 @@ impl<'m> Rounds<'m> {
             })
             .collect();
         let done = (!self.done.is_empty()).then_some((&self.done[..], &self.logs[..], &redo[..]));
-        let (mut state, outs) = state.phase(plan, frozen, None, opts, origin, done);
+        let (mut state, outs) = state.phase(plan, frozen, None, opts, origin, done, None);
         let first = self.done.is_empty();
-        for (r, (result, log)) in outs.into_iter().enumerate() {
+        for (r, (result, log, _)) in outs.into_iter().enumerate() {
             if first {
                 self.done.push(result);
                 self.logs.push(log);
@@ -440,54 +505,97 @@ impl<'m> Rounds<'m> {
             let shifted = super::regions::plan(&lookup, Some(&grid.shifted()));
             state.pos = lookup.vertices;
             state.slots = lookup.triangles;
-            let (next, _) = state.phase(&shifted, frozen, Some(&active), opts, origin, None);
+            let cache = Some(&self.shifted_done[..]);
+            let (next, outs) =
+                state.phase(&shifted, frozen, Some(&active), opts, origin, None, cache);
             state = next;
+            // Kept for the next round, whose regions of the same cubes and copies take them.
+            self.shifted_done = shifted
+                .regions
+                .iter()
+                .zip(outs)
+                .map(|(region, (result, _, print))| (region.key, print, result))
+                .collect();
             for (a, &m) in active.iter_mut().zip(&shifted.movable) {
                 *a = !m;
             }
         }
         // The seams: a run over the whole mesh, from the vertices no region could move.
         let State {
-            pos,
+            mut pos,
             quad,
             nrm,
-            parent,
-            moved,
-            slots,
+            mut parent,
+            mut moved,
+            mut slots,
             passes,
             collapses,
         } = state;
+        if self.grid.is_none() {
+            return Round {
+                passes,
+                collapses,
+                pos,
+                tris: slots,
+                parent,
+                moved,
+            };
+        }
+        // On the vertices that are left only, numbered in the same order (so the run makes
+        // the same collapses as on the global numbering), so that each pass's work follows
+        // the mesh that is left rather than the input's vertex count.
+        let mut local_of = vec![u32::MAX; nv];
+        for t in &slots {
+            for &k in t {
+                local_of[k as usize] = 0;
+            }
+        }
+        let mut live = Vec::new();
+        for (g, l) in local_of.iter_mut().enumerate() {
+            if *l == 0 {
+                *l = live.len() as u32;
+                live.push(g as u32);
+            }
+        }
+        let at = |g: &u32| *g as usize;
+        for t in &mut slots {
+            *t = t.map(|k| local_of[k as usize]);
+        }
+        drop(local_of);
+        // The quadrics (the largest arrays) are compacted in place.
         let mut seam = Collapser::new(
             Mesh {
-                vertices: pos,
+                vertices: live.iter().map(|g| pos[at(g)]).collect(),
                 triangles: slots,
             },
-            (quad, nrm),
-            frozen.to_vec(),
+            (compacted(quad, &live), compacted(nrm, &live)),
+            live.iter().map(|g| frozen[at(g)]).collect(),
             opts,
             origin,
         );
-        seam.parent = parent;
-        seam.moved = moved;
-        seam.active = active;
-        if self.grid.is_some() {
-            seam.run();
+        seam.active = live.iter().map(|g| active[at(g)]).collect();
+        seam.run();
+        for (l, &g) in live.iter().enumerate() {
+            let g = g as usize;
+            if seam.parent[l] as usize != l {
+                parent[g] = live[seam.parent[l] as usize];
+            }
+            moved[g] |= seam.moved[l];
+            pos[g] = seam.pos[l];
         }
         Round {
             passes: passes + seam.passes,
             collapses: collapses + seam.collapses,
-            pos: seam.pos,
-            tris: seam.tris,
-            parent: seam.parent,
-            moved: seam.moved,
+            pos,
+            tris: seam
+                .tris
+                .iter()
+                .map(|t| t.map(|k| live[k as usize]))
+                .collect(),
+            parent,
+            moved,
         }
     }
-}
-
-/// Whether triangle `id` of the mesh is one of `region`'s own (not its halo): the own ones
-/// come first in `ids`, in increasing order.
-fn id_is_own(region: &Region, id: u32) -> bool {
-    region.ids[..region.own].binary_search(&id).is_ok()
 }
 
 /// A region's copy of the mesh, ready to run: its vertices (positions, quadrics,
@@ -516,6 +624,7 @@ fn region_copy(
         .collect();
     let mut c = Collapser::new(local, quadrics, fixed, opts, origin);
     c.ids.clone_from(&region.ids);
+    c.one_task = plan.regions.len() > 1;
     if let Some(active) = active {
         for (a, &g) in c.active.iter_mut().zip(verts) {
             *a = active[g as usize];
@@ -526,7 +635,7 @@ fn region_copy(
 
 /// What a region did, in global indices: its movable vertices that collapsed (into
 /// which) and that moved (where, with their quadric and normal), its own triangles that
-/// are left (numbers and corners), and its passes and collapses.
+/// are left (their places among its own and their corners), and its passes and collapses.
 #[derive(Clone, Default)]
 struct RegionResult {
     parents: Vec<(u32, u32)>,
@@ -534,6 +643,16 @@ struct RegionResult {
     tris: Vec<(u32, [u32; 3])>,
     passes: usize,
     collapses: usize,
+}
+
+/// `items` with only the items at the increasing indices `keep`, in place.
+fn compacted<T: Copy>(mut items: Vec<T>, keep: &[u32]) -> Vec<T> {
+    for (l, &g) in keep.iter().enumerate() {
+        items[l] = items[g as usize];
+    }
+    items.truncate(keep.len());
+    items.shrink_to_fit();
+    items
 }
 
 /// Runs a region's copy, or replays `replay` on it; returns its result and its collapses.
@@ -564,8 +683,9 @@ fn run_region(
         }
     }
     for (t, &id) in c.tris.iter().zip(&c.ids) {
-        if id_is_own(region, id) {
-            out.tris.push((id, t.map(|k| region.verts[k as usize])));
+        if let Ok(k) = region.ids[..region.own].binary_search(&id) {
+            out.tris
+                .push((k as u32, t.map(|k| region.verts[k as usize])));
         }
     }
     (out, (c.log, c.pass_ends))
