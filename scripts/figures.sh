@@ -186,7 +186,8 @@ if want validity && [ -d "$data" ]; then
     echo "were not closed or not a valid solid, and (with pymeshlab) MeshLab's count of"
     echo "self-intersecting faces on the written file, summed over the seven scans. MeshLab's test is"
     echo "a floating-point one: on nearly coplanar neighbours of an unsimplified mesh it flags pairs"
-    echo "that an exact rational test shows to be apart."
+    echo "that an exact rational test shows to be apart (\`scripts/meshlab_pairs.py MESH\` checks"
+    echo "every pair it flags)."
     echo
     echo "| switch | leaf mm | triangles (sum) | self-intersecting (exact) | not closed / not valid | MeshLab |"
     echo "|---|---|---|---|---|---|"
