@@ -113,6 +113,21 @@ pub(crate) fn map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync) -> 
     out
 }
 
+/// `(a(), b())`, the two at once with the `parallel` feature.
+pub(crate) fn join<A: Send, B: Send>(
+    a: impl FnOnce() -> A + Send,
+    b: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    #[cfg(feature = "parallel")]
+    {
+        rayon::join(a, b)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        (a(), b())
+    }
+}
+
 /// Appends to `dst` what `f(i, buffer)` appends for every `i` in `0..n`, in order of `i`
 /// (in parallel: `per_task` consecutive `i` per task, joined in order, a batch of tasks at
 /// a time so that the parts held at once are a batch's, not the whole output's).

@@ -126,18 +126,6 @@ fn tri_box(vertices: &[Vec3], t: [u32; 3]) -> [Vec3A; 2] {
     [a.min(b).min(c), a.max(b).max(c)]
 }
 
-/// `(a(), b())`, the two at once with the `parallel` feature.
-fn join<A: Send, B: Send>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> B + Send) -> (A, B) {
-    #[cfg(feature = "parallel")]
-    {
-        rayon::join(a, b)
-    }
-    #[cfg(not(feature = "parallel"))]
-    {
-        (a(), b())
-    }
-}
-
 /// Largest fan that [`certified`] examines.
 const MAX_FAN: usize = 32;
 
@@ -252,7 +240,7 @@ impl<'a> Checker<'a> {
         let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
         // The fans (built on one thread) and certificates alongside the boxes and the grid,
         // so that the serial parts of each overlap the other's parallel ones.
-        let ((fans, cert, cv), (boxes, index)) = join(
+        let ((fans, cert, cv), (boxes, index)) = crate::par::join(
             || {
                 let fans = VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false);
                 let mut cert = Vec::new();
