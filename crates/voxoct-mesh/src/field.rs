@@ -296,18 +296,13 @@ fn fill_enclosed(cells: &mut Vec<(UVec3, f32)>, rule: &FillRule) -> Result<(), M
 fn fill_enclosed_dense(
     cells: &mut Vec<(UVec3, f32)>,
     (lo, n): (IVec3, [usize; 3]),
-    &FillRule {
-        floor,
-        max_gap,
-        min_component,
-        specks,
-    }: &FillRule,
+    rule: &FillRule,
 ) {
     let values = BoxValues::new(cells, lo, n);
     let mut marked = values.marked.clone();
-    remove_small_groups(&mut marked, min_component);
-    let chosen = narrowest_closing(max_gap, |gap| {
-        let e = enclosed(&marked, floor.is_some(), gap);
+    remove_small_groups(&mut marked, rule.min_component);
+    let chosen = narrowest_closing(rule.max_gap, |gap| {
+        let e = enclosed(&marked, rule.floor.is_some(), gap);
         let count = e.count() as u64;
         (e, count)
     });
@@ -316,7 +311,7 @@ fn fill_enclosed_dense(
     for (k, e) in keep.bits.iter_mut().zip(&chosen.bits) {
         *k |= e;
     }
-    if let Some((min, inside)) = specks {
+    if let Some((min, inside)) = rule.specks {
         drop_specks(&mut keep, &marked, &chosen, &values, min, inside);
     }
     values.write_cells(cells, &keep, &marked);
@@ -330,12 +325,7 @@ fn fill_enclosed_dense(
 fn fill_enclosed_tiled(
     cells: &mut Vec<(UVec3, f32)>,
     (lo, n): (IVec3, [usize; 3]),
-    &FillRule {
-        floor,
-        max_gap,
-        min_component,
-        specks,
-    }: &FillRule,
+    rule: &FillRule,
 ) -> Result<(), MeshError> {
     let origin = lo + IVec3::ONE;
     let t = [
@@ -366,14 +356,14 @@ fn fill_enclosed_tiled(
         let q = local(c.0);
         marked.set(q.x as usize, q.y as usize, q.z as usize);
     }
-    tiled::remove_small_groups(&mut marked, min_component);
-    let chosen = narrowest_closing(max_gap, |gap| {
-        let e = tiled::enclosed(&marked, floor.is_some(), gap);
+    tiled::remove_small_groups(&mut marked, rule.min_component);
+    let chosen = narrowest_closing(rule.max_gap, |gap| {
+        let e = tiled::enclosed(&marked, rule.floor.is_some(), gap);
         let count = e.count();
         (e, count)
     });
     let mut keep = marked.or(&chosen);
-    if let Some((min, inside)) = specks {
+    if let Some((min, inside)) = rule.specks {
         let mut by_value = tiled::Tiled::new(t);
         for c in cells.iter().filter(|c| inside.test(c.1)) {
             let q = local(c.0);
