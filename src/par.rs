@@ -37,6 +37,22 @@ pub(crate) fn insert(tree: &mut Octree, triangles: &[Triangle]) {
     tree.insert_all(triangles);
 }
 
+/// `(a(), b())`, the two at once with the `parallel` feature (`b` on another thread when
+/// one is free), one after the other without it.
+pub(crate) fn join<A: Send, B: Send>(
+    a: impl FnOnce() -> A + Send,
+    b: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    #[cfg(feature = "parallel")]
+    {
+        rayon::join(a, b)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        (a(), b())
+    }
+}
+
 /// How many threads the work runs on: rayon's pool with the `parallel` feature, else 1.
 #[must_use]
 pub fn threads() -> usize {

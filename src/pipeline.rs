@@ -288,8 +288,9 @@ pub enum Stage {
 pub struct Timings {
     /// [`Stage::Filter`].
     pub filter: Duration,
-    /// Measuring the snapshots' disagreement ([`Params::check_agreement`]), after the
-    /// filter stage and not included in it.
+    /// Measuring the snapshots' disagreement ([`Params::check_agreement`]): not included
+    /// in the filter stage. It runs alongside the closure's minimum cut (one thread) when
+    /// there is one, its time then part of `closure`'s, else right before `closure`.
     pub agreement: Duration,
     /// [`Stage::Triangulate`].
     pub triangulate: Duration,
@@ -405,11 +406,6 @@ pub fn reconstruct(
     let angles: Vec<f32> = snapshots.iter().map(|s| s.angle_deg).collect();
     let filtered = filter_snapshots(snapshots, &params.filter)?;
     timings.filter = t.elapsed();
-    let t = Instant::now();
-    let disagreement_m = (params.check_agreement && filtered.len() > 1)
-        .then(|| measure_disagreement(config, &filtered, &angles))
-        .flatten();
-    timings.agreement = t.elapsed();
 
     on_stage(Stage::Triangulate);
     let t = Instant::now();
@@ -425,7 +421,7 @@ pub fn reconstruct(
 
     on_stage(Stage::Mesh);
     let t = Instant::now();
-    let (mesh, self_intersection_free) =
+    let (mesh, self_intersection_free, disagreement_m) =
         mesh_tree(config, params, &tree, filtered, &angles, &mut timings)?;
     timings.mesh = t.elapsed();
 
@@ -538,7 +534,9 @@ fn build_octree(
 
 /// Stage 4: the marked leaves (at `lod` levels coarser) meshed; in solid mode what no
 /// frame saw is closed first ([`Params::carve`]); small pieces dropped, then simplified. The
-/// steps' times go into `timings`.
+/// steps' times go into `timings`. The snapshots' disagreement
+/// ([`Reconstruction::disagreement_m`]) is measured alongside the closure's minimum cut,
+/// which runs on one thread.
 fn mesh_tree(
     config: &ScannerConfig,
     params: &Params,
@@ -546,23 +544,36 @@ fn mesh_tree(
     filtered: Vec<DepthFrame>,
     angles: &[f32],
     timings: &mut Timings,
-) -> Result<(Mesh, bool), PipelineError> {
+) -> Result<(Mesh, bool, Option<f32>), PipelineError> {
     // `Params::validate` refused a `lod` beyond the depth of this root and leaf.
     let depth = tree.depth() - params.lod;
     let options = mesh_options(config, params);
     let grid = tree.grid(depth);
     let mut cells = tree.cells_at_depth(depth);
     let t = Instant::now();
+    let agreement = || {
+        let t = Instant::now();
+        let d = (params.check_agreement && filtered.len() > 1)
+            .then(|| measure_disagreement(config, &filtered, angles))
+            .flatten();
+        (d, t.elapsed())
+    };
+    let disagreement_m;
     if params.carve && options.solid {
         let views = (filtered.as_slice(), angles);
-        cells = close_unseen_in_budget(
+        let (closed, (d, took)) = close_unseen_in_budget(
             config,
             &options,
             (tree, depth),
             cells,
             views,
             CLOSURE_BUDGET_CELLS,
+            agreement,
         );
+        cells = closed;
+        (disagreement_m, timings.agreement) = (d, took);
+    } else {
+        (disagreement_m, timings.agreement) = agreement();
     }
     drop(filtered);
     timings.closure = t.elapsed();
@@ -580,7 +591,7 @@ fn mesh_tree(
     timings.march = out.times.march;
     timings.smooth = out.times.smooth;
     timings.simplify = out.times.simplify;
-    Ok((out.mesh, out.certified))
+    Ok((out.mesh, out.certified, disagreement_m))
 }
 
 /// The meshing options of `params` for a scan with `config`: in solid mode with
@@ -603,7 +614,8 @@ const CLOSURE_BUDGET_CELLS: u64 = 1 << 25;
 /// [`close_unseen`] on the cells of `depth` of `tree`, or, when their closure box exceeds
 /// `budget` cells ([`CLOSURE_BUDGET_CELLS`]), on the grid `k` levels coarser whose box fits
 /// (the closure's other inputs unchanged); every cell of a coarse cell it adds is then added
-/// at `depth`. The marked cells stay at full resolution.
+/// at `depth`. The marked cells stay at full resolution. `beside` runs alongside the
+/// minimum cut (or on its own when there is none); its result is returned too.
 ///
 /// Why a coarser grid is right there: the closure decides space that no view saw, where any
 /// surface is invented, so its resolution bounds no measured detail; it only has to be
@@ -613,18 +625,19 @@ const CLOSURE_BUDGET_CELLS: u64 = 1 << 25;
 /// 2–3 cm cells) or an object at a leaf far below the noise (at 0.7 m, σ ≈ 1.4 mm: 0.25 mm
 /// leaves are closed on 0.5 mm cells). The development scans (boxes of at most 24 million
 /// cells at 0.5 mm) stay below the budget and are closed at full resolution as before.
-fn close_unseen_in_budget(
+fn close_unseen_in_budget<R: Send>(
     config: &ScannerConfig,
     options: &MeshOptions,
     (tree, depth): (&Octree, u32),
     cells: Vec<Cell>,
     (filtered, angles): (&[DepthFrame], &[f32]),
     budget: u64,
-) -> Vec<Cell> {
+    beside: impl FnOnce() -> R + Send,
+) -> (Vec<Cell>, R) {
     let grid = tree.grid(depth);
     let floor = closure_floor(options, &grid);
     let Some((lo, hi)) = closure_box(&cells, &grid, floor) else {
-        return cells;
+        return (cells, beside());
     };
     let volume = |lo: UVec3, hi: UVec3| {
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
@@ -639,6 +652,7 @@ fn close_unseen_in_budget(
             floor,
             (filtered, angles),
             options.min_hits,
+            beside,
         );
     }
     // The finest coarser grid whose box fits (its box holds the fine one's cells).
@@ -651,9 +665,9 @@ fn close_unseen_in_budget(
     let known = coarse.len();
     let coarse_floor = closure_floor(options, &coarse_grid);
     let Some(coarse_box) = closure_box(&coarse, &coarse_grid, coarse_floor) else {
-        return cells;
+        return (cells, beside());
     };
-    let closed = close_unseen(
+    let (closed, r) = close_unseen(
         config,
         &coarse_grid,
         coarse,
@@ -661,6 +675,7 @@ fn close_unseen_in_budget(
         coarse_floor,
         (filtered, angles),
         options.min_hits,
+        beside,
     );
     // `close_cells` appends the cells it adds after the ones it was given; a coarse cell it
     // adds holds no marked leaf (else it would be known), so all its cells are added.
@@ -683,7 +698,7 @@ fn close_unseen_in_budget(
             }
         }
     }
-    cells
+    (cells, r)
 }
 
 /// The layer below which [`close_unseen`] excludes cells (the floor's, else none).
@@ -697,8 +712,10 @@ fn closure_floor(options: &MeshOptions, grid: &GridSpec) -> u32 {
 /// Closes what no frame saw in the box `lo..=hi` of `grid` (the cells' [`closure_box`] above
 /// `floor`) by the cheapest surface between the space seen empty and the solid ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]): invented surface
 /// costs its area, and one more unit of area for every carving margin (the uncertainty of
-/// an observed surface's position) it lies away from the nearest observation.
-fn close_unseen(
+/// an observed surface's position) it lies away from the nearest observation. `beside`
+/// runs alongside the minimum cut, which is serial; its result is returned too.
+#[allow(clippy::too_many_arguments)]
+fn close_unseen<R: Send>(
     config: &ScannerConfig,
     grid: &GridSpec,
     cells: Vec<Cell>,
@@ -706,7 +723,8 @@ fn close_unseen(
     floor: u32,
     (filtered, angles): (&[DepthFrame], &[f32]),
     min_hits: u32,
-) -> Vec<Cell> {
+    beside: impl FnOnce() -> R + Send,
+) -> (Vec<Cell>, R) {
     let views: Vec<CarveView<'_>> = filtered
         .iter()
         .zip(angles)
@@ -730,10 +748,15 @@ fn close_unseen(
     let dim = hi - lo + UVec3::ONE;
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.
-    close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, |c| {
-        let d = c - lo;
-        seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
-    })
+    par::join(
+        || {
+            close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, |c| {
+                let d = c - lo;
+                seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
+            })
+        },
+        beside,
+    )
 }
 
 /// The snapshots of a recorded scan, ready for [`reconstruct`], with its scanner settings.
@@ -843,13 +866,14 @@ mod tests {
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
         let solid = |budget: u64| {
             let views = (filtered.as_slice(), angles.as_slice());
-            let cells = close_unseen_in_budget(
+            let (cells, ()) = close_unseen_in_budget(
                 &config,
                 &options,
                 (&tree, depth),
                 marked.clone(),
                 views,
                 budget,
+                || (),
             );
             let (mesh, _) = voxoct_mesh::mesh_cells_certified(&cells, &grid, &options).unwrap();
             mesh.check_closed_manifold().unwrap();

@@ -68,11 +68,15 @@ pub(crate) fn taubin(mesh: &mut Mesh, opts: &Taubin) -> bool {
     if mesh.vertices.is_empty() || opts.iterations == 0 {
         return false;
     }
-    let (start, adj) = neighbours(mesh);
+    // The untangling's fans (one serial pass) are built alongside the neighbours (another).
+    let ((start, adj), fans) = par::join(
+        || neighbours(mesh),
+        || selfx::vertex_fans(mesh.vertices.len(), &mesh.triangles),
+    );
     let smoothed = run(mesh, &start, &adj, opts, opts.iterations);
     drop((start, adj));
     let safe = std::mem::replace(&mut mesh.vertices, smoothed);
-    if !selfx::untangle(mesh, &safe) {
+    if !selfx::untangle(mesh, &safe, Some(fans)) {
         mesh.vertices = safe;
         return false;
     }

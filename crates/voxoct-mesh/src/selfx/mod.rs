@@ -233,16 +233,32 @@ pub(crate) struct Checker<'a> {
     touched_list: Vec<u32>,
 }
 
+/// The fans of the proper-indexed triangles of a mesh with `nv` vertices, as the search
+/// uses them (see [`Checker::with_fans`]).
+pub(crate) fn vertex_fans(nv: usize, triangles: &[[u32; 3]]) -> VertexFans {
+    VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false)
+}
+
 impl<'a> Checker<'a> {
     /// Prepares the search over the triangles' current boxes.
     pub(crate) fn new(vertices: &[Vec3], triangles: &'a [[u32; 3]], f32_degenerate: bool) -> Self {
+        Self::with_fans(vertices, triangles, f32_degenerate, None)
+    }
+
+    /// [`Checker::new`], with the triangles' [`vertex_fans`] when they are already built.
+    pub(crate) fn with_fans(
+        vertices: &[Vec3],
+        triangles: &'a [[u32; 3]],
+        f32_degenerate: bool,
+        fans: Option<VertexFans>,
+    ) -> Self {
         let nv = vertices.len();
         let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
         // The fans (built on one thread) and certificates alongside the boxes and the grid,
         // so that the serial parts of each overlap the other's parallel ones.
         let ((fans, cert, cv), (boxes, index)) = crate::par::join(
             || {
-                let fans = VertexFans::new(nv, triangles, |t| valid_indices(nv, t), false);
+                let fans = fans.unwrap_or_else(|| vertex_fans(nv, triangles));
                 let mut cert = Vec::new();
                 crate::par::map_into(&mut cert, nv, |v| {
                     certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
@@ -374,14 +390,15 @@ fn fact(vertices: &[Vec3], t: [u32; 3], f32_degenerate: bool) -> (u8, u8) {
 /// Every round moves a vertex, and a pair of triangles whose vertices are all at `safe` is
 /// proper, so this ends. Returns `true` when no triangle is left flagged (the mesh is
 /// proven free of self-intersections), `false` when flagged triangles are left with every
-/// vertex at `safe` (`safe` was not clean).
-pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3]) -> bool {
+/// vertex at `safe` (`safe` was not clean). `fans`: the mesh's [`vertex_fans`], when
+/// already built.
+pub(crate) fn untangle(mesh: &mut Mesh, safe: &[Vec3], fans: Option<VertexFans>) -> bool {
     let Mesh {
         vertices,
         triangles,
     } = mesh;
     let target = vertices.clone();
-    let mut checker = Checker::new(vertices, triangles, true);
+    let mut checker = Checker::with_fans(vertices, triangles, true, fans);
     let mut flagged = checker.check_all(vertices);
     if flagged.is_empty() {
         return true;

@@ -399,6 +399,9 @@ pub(super) struct Rounds<'m> {
     frozen_then: Vec<bool>,
     /// The second phase's results of the latest round, by cube (increasing).
     shifted_done: Vec<Cached>,
+    /// The input's quadrics and normals, computed alongside the plan, for the first round
+    /// (a later one computes them again).
+    quadrics: Option<(Vec<Quadric>, Vec<Vec3>)>,
 }
 
 /// A region's cube, the fingerprint of its copy and its result.
@@ -439,11 +442,20 @@ impl<'m> Rounds<'m> {
     /// No round made yet; regions of about `per_region` triangles (0: one region, and no
     /// other phase).
     pub(super) fn new(mesh: &'m Mesh, opts: &'m Simplify, per_region: usize) -> Self {
-        let grid = Grid::new(mesh, per_region);
+        // The plan's serial parts and the quadrics (one serial pass) overlap.
+        let ((grid, plan), quadrics) = par::join(
+            || {
+                let grid = Grid::new(mesh, per_region);
+                let plan = plan(mesh, grid.as_ref());
+                (grid, plan)
+            },
+            || super::quadric::initial_quadrics(mesh),
+        );
         Self {
             mesh,
-            plan: plan(mesh, grid.as_ref()),
+            plan,
             grid,
+            quadrics: Some(quadrics),
             opts,
             done: Vec::new(),
             logs: Vec::new(),
@@ -457,7 +469,10 @@ impl<'m> Rounds<'m> {
     pub(super) fn next(&mut self, frozen: &[bool]) -> Round {
         let (mesh, opts, plan) = (self.mesh, self.opts, &self.plan);
         let origin = super::quadric::origin(mesh);
-        let (quad, nrm) = super::quadric::initial_quadrics(mesh);
+        let (quad, nrm) = self
+            .quadrics
+            .take()
+            .unwrap_or_else(|| super::quadric::initial_quadrics(mesh));
         let nv = mesh.vertices.len();
         let state = State {
             pos: mesh.vertices.clone(),
