@@ -289,8 +289,8 @@ pub struct Timings {
     /// [`Stage::Filter`].
     pub filter: Duration,
     /// Measuring the snapshots' disagreement ([`Params::check_agreement`]): not included
-    /// in the filter stage. It runs alongside the closure's minimum cut (one thread) when
-    /// there is one, its time then part of `closure`'s, else right before `closure`.
+    /// in the filter stage. It runs alongside the closure, so its time is part of
+    /// `closure`'s as well.
     pub agreement: Duration,
     /// [`Stage::Triangulate`].
     pub triangulate: Duration,
@@ -535,8 +535,7 @@ fn build_octree(
 /// Stage 4: the marked leaves (at `lod` levels coarser) meshed; in solid mode what no
 /// frame saw is closed first ([`Params::carve`]); small pieces dropped, then simplified. The
 /// steps' times go into `timings`. The snapshots' disagreement
-/// ([`Reconstruction::disagreement_m`]) is measured alongside the closure's minimum cut,
-/// which runs on one thread.
+/// ([`Reconstruction::disagreement_m`]) is measured alongside the closure.
 fn mesh_tree(
     config: &ScannerConfig,
     params: &Params,
@@ -549,32 +548,35 @@ fn mesh_tree(
     let depth = tree.depth() - params.lod;
     let options = mesh_options(config, params);
     let grid = tree.grid(depth);
-    let mut cells = tree.cells_at_depth(depth);
+    let cells = tree.cells_at_depth(depth);
     let t = Instant::now();
-    let agreement = || {
-        let t = Instant::now();
-        let d = (params.check_agreement && filtered.len() > 1)
-            .then(|| measure_disagreement(config, &filtered, angles))
-            .flatten();
-        (d, t.elapsed())
-    };
-    let disagreement_m;
-    if params.carve && options.solid {
-        let views = (filtered.as_slice(), angles);
-        let (closed, (d, took)) = close_unseen_in_budget(
-            config,
-            &options,
-            (tree, depth),
-            cells,
-            views,
-            CLOSURE_BUDGET_CELLS,
-            agreement,
-        );
-        cells = closed;
-        (disagreement_m, timings.agreement) = (d, took);
-    } else {
-        (disagreement_m, timings.agreement) = agreement();
-    }
+    // The closure's minimum cut is serial: the agreement check (serial too) takes the other
+    // core meanwhile.
+    let (cells, (disagreement_m, agreement)) = par::join(
+        || {
+            if params.carve && options.solid {
+                let views = (filtered.as_slice(), angles);
+                close_unseen_in_budget(
+                    config,
+                    &options,
+                    (tree, depth),
+                    cells,
+                    views,
+                    CLOSURE_BUDGET_CELLS,
+                )
+            } else {
+                cells
+            }
+        },
+        || {
+            let t = Instant::now();
+            let d = (params.check_agreement && filtered.len() > 1)
+                .then(|| measure_disagreement(config, &filtered, angles))
+                .flatten();
+            (d, t.elapsed())
+        },
+    );
+    timings.agreement = agreement;
     drop(filtered);
     timings.closure = t.elapsed();
     // Removing whole pieces cannot make two triangles intersect; simplification refuses
@@ -614,8 +616,7 @@ const CLOSURE_BUDGET_CELLS: u64 = 1 << 25;
 /// [`close_unseen`] on the cells of `depth` of `tree`, or, when their closure box exceeds
 /// `budget` cells ([`CLOSURE_BUDGET_CELLS`]), on the grid `k` levels coarser whose box fits
 /// (the closure's other inputs unchanged); every cell of a coarse cell it adds is then added
-/// at `depth`. The marked cells stay at full resolution. `beside` runs alongside the
-/// minimum cut (or on its own when there is none); its result is returned too.
+/// at `depth`. The marked cells stay at full resolution.
 ///
 /// Why a coarser grid is right there: the closure decides space that no view saw, where any
 /// surface is invented, so its resolution bounds no measured detail; it only has to be
@@ -625,19 +626,18 @@ const CLOSURE_BUDGET_CELLS: u64 = 1 << 25;
 /// 2–3 cm cells) or an object at a leaf far below the noise (at 0.7 m, σ ≈ 1.4 mm: 0.25 mm
 /// leaves are closed on 0.5 mm cells). The development scans (boxes of at most 24 million
 /// cells at 0.5 mm) stay below the budget and are closed at full resolution as before.
-fn close_unseen_in_budget<R: Send>(
+fn close_unseen_in_budget(
     config: &ScannerConfig,
     options: &MeshOptions,
     (tree, depth): (&Octree, u32),
     cells: Vec<Cell>,
     (filtered, angles): (&[DepthFrame], &[f32]),
     budget: u64,
-    beside: impl FnOnce() -> R + Send,
-) -> (Vec<Cell>, R) {
+) -> Vec<Cell> {
     let grid = tree.grid(depth);
     let floor = closure_floor(options, &grid);
     let Some((lo, hi)) = closure_box(&cells, &grid, floor) else {
-        return (cells, beside());
+        return cells;
     };
     let volume = |lo: UVec3, hi: UVec3| {
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
@@ -652,7 +652,6 @@ fn close_unseen_in_budget<R: Send>(
             floor,
             (filtered, angles),
             options.min_hits,
-            beside,
         );
     }
     // The finest coarser grid whose box fits (its box holds the fine one's cells).
@@ -665,9 +664,9 @@ fn close_unseen_in_budget<R: Send>(
     let known = coarse.len();
     let coarse_floor = closure_floor(options, &coarse_grid);
     let Some(coarse_box) = closure_box(&coarse, &coarse_grid, coarse_floor) else {
-        return (cells, beside());
+        return cells;
     };
-    let (closed, r) = close_unseen(
+    let closed = close_unseen(
         config,
         &coarse_grid,
         coarse,
@@ -675,7 +674,6 @@ fn close_unseen_in_budget<R: Send>(
         coarse_floor,
         (filtered, angles),
         options.min_hits,
-        beside,
     );
     // `close_cells` appends the cells it adds after the ones it was given; a coarse cell it
     // adds holds no marked leaf (else it would be known), so all its cells are added.
@@ -698,7 +696,7 @@ fn close_unseen_in_budget<R: Send>(
             }
         }
     }
-    (cells, r)
+    cells
 }
 
 /// The layer below which [`close_unseen`] excludes cells (the floor's, else none).
@@ -712,10 +710,8 @@ fn closure_floor(options: &MeshOptions, grid: &GridSpec) -> u32 {
 /// Closes what no frame saw in the box `lo..=hi` of `grid` (the cells' [`closure_box`] above
 /// `floor`) by the cheapest surface between the space seen empty and the solid ([`voxoct_depth::carve::visibility`], [`voxoct_mesh::closure`]): invented surface
 /// costs its area, and one more unit of area for every carving margin (the uncertainty of
-/// an observed surface's position) it lies away from the nearest observation. `beside`
-/// runs alongside the minimum cut, which is serial; its result is returned too.
-#[allow(clippy::too_many_arguments)]
-fn close_unseen<R: Send>(
+/// an observed surface's position) it lies away from the nearest observation.
+fn close_unseen(
     config: &ScannerConfig,
     grid: &GridSpec,
     cells: Vec<Cell>,
@@ -723,8 +719,7 @@ fn close_unseen<R: Send>(
     floor: u32,
     (filtered, angles): (&[DepthFrame], &[f32]),
     min_hits: u32,
-    beside: impl FnOnce() -> R + Send,
-) -> (Vec<Cell>, R) {
+) -> Vec<Cell> {
     let views: Vec<CarveView<'_>> = filtered
         .iter()
         .zip(angles)
@@ -748,15 +743,10 @@ fn close_unseen<R: Send>(
     let dim = hi - lo + UVec3::ONE;
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.
-    par::join(
-        || {
-            close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, |c| {
-                let d = c - lo;
-                seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
-            })
-        },
-        beside,
-    )
+    close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, |c| {
+        let d = c - lo;
+        seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
+    })
 }
 
 /// The snapshots of a recorded scan, ready for [`reconstruct`], with its scanner settings.
@@ -866,14 +856,13 @@ mod tests {
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
         let solid = |budget: u64| {
             let views = (filtered.as_slice(), angles.as_slice());
-            let (cells, ()) = close_unseen_in_budget(
+            let cells = close_unseen_in_budget(
                 &config,
                 &options,
                 (&tree, depth),
                 marked.clone(),
                 views,
                 budget,
-                || (),
             );
             let (mesh, _) = voxoct_mesh::mesh_cells_certified(&cells, &grid, &options).unwrap();
             mesh.check_closed_manifold().unwrap();
