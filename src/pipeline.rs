@@ -21,7 +21,7 @@ use voxoct_depth::snapshot::Snapshot;
 use voxoct_depth::triangulate::{DEFAULT_MAX_EDGE_SQ, triangulate};
 use voxoct_depth::{DepthFrame, FrameError, ScannerConfig};
 use voxoct_kinect::{DepthSource, SimulatedKinect, SourceError};
-use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplify};
+use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplified, Simplify, SimplifyStats};
 
 use crate::par;
 
@@ -333,6 +333,10 @@ pub struct Reconstruction {
     /// done piece by piece, the exact test ran over the joined result). `false`: not
     /// checked — run [`Mesh::self_intersecting_triangles`].
     pub self_intersection_free: bool,
+    /// Triangles the marching produced (small pieces dropped), before simplification.
+    pub marched_triangles: usize,
+    /// What simplification did; `None` when it is off.
+    pub simplify: Option<SimplifyStats>,
 }
 
 /// The largest snapshot disagreement ([`Reconstruction::disagreement_m`]) that the sensor's
@@ -421,17 +425,19 @@ pub fn reconstruct(
 
     on_stage(Stage::Mesh);
     let t = Instant::now();
-    let (mesh, self_intersection_free, disagreement_m) =
+    let (meshed, disagreement_m) =
         mesh_tree(config, params, &tree, filtered, &angles, &mut timings)?;
     timings.mesh = t.elapsed();
 
     Ok(Reconstruction {
-        mesh,
+        mesh: meshed.mesh,
         tree,
         triangles_in,
         timings,
         disagreement_m,
-        self_intersection_free,
+        self_intersection_free: meshed.certified,
+        marched_triangles: meshed.marched_triangles,
+        simplify: meshed.simplify,
     })
 }
 
@@ -543,7 +549,7 @@ fn mesh_tree(
     filtered: Vec<DepthFrame>,
     angles: &[f32],
     timings: &mut Timings,
-) -> Result<(Mesh, bool, Option<f32>), PipelineError> {
+) -> Result<(Simplified, Option<f32>), PipelineError> {
     // `Params::validate` refused a `lod` beyond the depth of this root and leaf.
     let depth = tree.depth() - params.lod;
     let options = mesh_options(config, params);
@@ -593,7 +599,7 @@ fn mesh_tree(
     timings.march = out.times.march;
     timings.smooth = out.times.smooth;
     timings.simplify = out.times.simplify;
-    Ok((out.mesh, out.certified, disagreement_m))
+    Ok((out, disagreement_m))
 }
 
 /// The meshing options of `params` for a scan with `config`: in solid mode with

@@ -48,12 +48,25 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
         "leaves",
         "leaf_size_m",
         "mesh_triangles",
+        "mesh_marched_triangles",
+        "simplification",
         "mesh_vertices",
         "closed_manifold",
         "peak_rss_bytes",
     ] {
         assert!(stats.get(key).is_some(), "stats lack {key}: {stats}");
     }
+    // Simplification (on by default) started from the marched mesh and left the output.
+    let simp = &stats["simplification"];
+    assert_eq!(
+        simp["triangles_before"], stats["mesh_marched_triangles"],
+        "{stats}"
+    );
+    assert_eq!(simp["triangles_after"], stats["mesh_triangles"], "{stats}");
+    assert!(
+        simp["triangles_after"].as_u64().unwrap() < simp["triangles_before"].as_u64().unwrap(),
+        "{stats}"
+    );
     for key in [
         "load",
         "filter",

@@ -80,6 +80,23 @@ pub struct MeshSteps {
     pub simplify: f64,
 }
 
+/// What simplification did (`--stats`), summed over the pieces of a large mesh.
+#[derive(Debug, Serialize)]
+pub struct Simplification {
+    /// Triangles it started from (the smoothed, marched mesh).
+    pub triangles_before: usize,
+    /// Triangles it left.
+    pub triangles_after: usize,
+    /// Edge collapses made.
+    pub collapses: usize,
+    /// Collapse passes (the most any piece needed).
+    pub passes: usize,
+    /// Rounds replayed because the exact test found a new intersection.
+    pub retries: u32,
+    /// Vertices those rounds froze.
+    pub frozen_vertices: usize,
+}
+
 /// The `--stats` JSON object.
 #[derive(Debug, Serialize)]
 pub struct Stats {
@@ -93,6 +110,10 @@ pub struct Stats {
     pub octree_depth: u32,
     pub octree_bytes: usize,
     pub mesh_triangles: usize,
+    /// Triangles marching produced (small pieces dropped), before simplification.
+    pub mesh_marched_triangles: usize,
+    /// Null with `--no-simplify` (and `--thesis`).
+    pub simplification: Option<Simplification>,
     pub mesh_vertices: usize,
     pub mesh_components: usize,
     pub mesh_volume_m3: f64,
@@ -160,6 +181,15 @@ impl Stats {
             octree_depth: tree.depth(),
             octree_bytes: tree.memory_bytes(),
             mesh_triangles: mesh.triangles.len(),
+            mesh_marched_triangles: r.marched_triangles,
+            simplification: r.simplify.as_ref().map(|s| Simplification {
+                triangles_before: s.triangles_before,
+                triangles_after: s.triangles_after,
+                collapses: s.collapses,
+                passes: s.passes,
+                retries: s.retries,
+                frozen_vertices: s.frozen_vertices,
+            }),
             mesh_vertices: mesh.vertices.len(),
             mesh_components: mstats.components,
             mesh_volume_m3: mstats.volume,

@@ -203,6 +203,26 @@ pub struct Simplified {
     pub certified: bool,
     /// Wall-clock time of each step.
     pub times: StepTimes,
+    /// Triangles that marching produced, small pieces dropped: what smoothing and
+    /// simplification started from.
+    pub marched_triangles: usize,
+    /// What simplification did (`None` without it); on the pieces path, summed over the
+    /// groups of the last round (`passes`: the most any group took; `skipped`: the first).
+    pub simplify: Option<SimplifyStats>,
+}
+
+/// `into` summed with `other` for [`Simplified::simplify`] on the pieces path.
+fn add_stats(into: &mut SimplifyStats, other: SimplifyStats) {
+    into.triangles_before += other.triangles_before;
+    into.triangles_after += other.triangles_after;
+    into.collapses += other.collapses;
+    into.passes = into.passes.max(other.passes);
+    into.retries += other.retries;
+    into.frozen_vertices += other.frozen_vertices;
+    into.new_intersections += other.new_intersections;
+    if into.skipped.is_none() {
+        into.skipped = other.skipped;
+    }
 }
 
 /// Wall-clock time of the steps of [`mesh_cells_simplified`]. On the pieces path the
@@ -261,20 +281,22 @@ pub fn mesh_cells_simplified(
         let t = Instant::now();
         mesh.remove_pieces_below_fraction(min_piece_fraction);
         times.march += t.elapsed();
+        let marched_triangles = mesh.triangles.len();
         let t = Instant::now();
-        if let Some(s) = simplify {
-            simplify::simplify(&mut mesh, s);
-        }
+        let stats = simplify.map(|s| simplify::simplify(&mut mesh, s));
         times.simplify = t.elapsed();
         return Ok(Simplified {
             mesh,
             certified,
             times,
+            marched_triangles,
+            simplify: stats,
         });
     }
     mesh.remove_pieces_below_fraction(min_piece_fraction);
     times.march = t.elapsed();
-    let (mesh, certified) = by_pieces(
+    let marched_triangles = mesh.triangles.len();
+    let (mesh, certified, stats) = by_pieces(
         &mesh,
         opts.smoothing.as_ref(),
         simplify,
@@ -285,6 +307,8 @@ pub fn mesh_cells_simplified(
         mesh,
         certified,
         times,
+        marched_triangles,
+        simplify: stats,
     })
 }
 
@@ -296,7 +320,7 @@ fn by_pieces(
     simplify: Option<&Simplify>,
     group_triangles: usize,
     times: &mut StepTimes,
-) -> (Mesh, bool) {
+) -> (Mesh, bool, Option<SimplifyStats>) {
     let (roots, size) = raw.triangle_components();
     // Groups of whole pieces (by root vertex), in root order.
     let mut group = vec![u32::MAX; raw.vertices.len()];
@@ -317,6 +341,9 @@ fn by_pieces(
     let mut tri_group: Vec<u32> = roots.iter().map(|&r| group[r as usize]).collect();
     drop((roots, group));
     let mut done: Vec<Option<Mesh>> = (0..groups).map(|_| None).collect();
+    // What simplifying each group did (kept with the group, so that a group processed again
+    // replaces its figures).
+    let mut group_stats: Vec<Option<SimplifyStats>> = (0..groups).map(|_| None).collect();
     let mut map = vec![u32::MAX; raw.vertices.len()];
     let mut used: Vec<u32> = Vec::new();
     loop {
@@ -356,9 +383,7 @@ fn by_pieces(
             }
             let t1 = Instant::now();
             times.smooth += t1 - t0;
-            if let Some(s) = simplify {
-                simplify::simplify(&mut part, s);
-            }
+            group_stats[g] = simplify.map(|s| simplify::simplify(&mut part, s));
             times.simplify += t1.elapsed();
             // Only what is kept stays resident (the buffers were sized for the input).
             part.vertices.shrink_to_fit();
@@ -380,8 +405,19 @@ fn by_pieces(
         let t0 = Instant::now();
         let bad = out.self_intersecting_triangles();
         times.smooth += t0.elapsed();
+        let summed = || {
+            simplify.map(|_| {
+                let mut sum = SimplifyStats::default();
+                for (d, st) in done.iter().zip(&group_stats) {
+                    if let (Some(_), Some(st)) = (d, st) {
+                        add_stats(&mut sum, st.clone());
+                    }
+                }
+                sum
+            })
+        };
         if bad.is_empty() {
-            return (out, true);
+            return (out, true, summed());
         }
         let mut flagged: Vec<u32> = bad.iter().map(|&t| out_group[t as usize]).collect();
         flagged.sort_unstable();
@@ -391,7 +427,8 @@ fn by_pieces(
                 // One group (the whole mesh) that still cuts through itself: cannot happen
                 // for a marched mesh (smoothing is undone rather than left tangled, and
                 // simplification introduces none); returned unproven.
-                return (out, false);
+                let stats = summed();
+                return (out, false, stats);
             }
             // A group that cuts through itself (never seen): all pieces as one group.
             flagged = (0..groups)
@@ -480,8 +517,15 @@ mod tests {
             prop_assume!(!raw.triangles.is_empty());
             let s = Simplify::for_leaf(grid.cell);
             let simplify = simplified.then_some(&s);
-            let (mesh, certified) = by_pieces(&raw, opts.smoothing.as_ref(), simplify, group, &mut StepTimes::default());
+            let (mesh, certified, stats) = by_pieces(&raw, opts.smoothing.as_ref(), simplify, group, &mut StepTimes::default());
             prop_assert!(certified);
+            // The groups' figures add up to the whole: every marched triangle went in, every
+            // output triangle came out.
+            prop_assert_eq!(stats.is_some(), simplified);
+            if let Some(st) = stats {
+                prop_assert_eq!(st.triangles_before, raw.triangles.len());
+                prop_assert_eq!(st.triangles_after, mesh.triangles.len());
+            }
             mesh.check_valid_solid().map_err(|e| TestCaseError::fail(e.to_string()))?;
             prop_assert_eq!(mesh.stats().components, raw.stats().components);
         }
