@@ -123,7 +123,7 @@ pub fn close_cells(
     }
     seal_behind_surfaces(dims, &mut known, &marked);
     let cost = face_costs(dims, &marked, prior_cells);
-    let inside = close_coarse(dims, &known, &cost);
+    let inside = close_coarse(dims, &known, &cost, coarse_levels(prior_cells));
     // Unknown cells the cut put inside, and those sealed behind a surface (`inside` is false
     // for empty and excluded cells).
     let added: Vec<bool> = inside.iter().zip(&marked).map(|(&a, &m)| a && !m).collect();
@@ -377,11 +377,42 @@ pub const MAX_FACE_COST: u8 = 40;
 /// interior, which keeps the search trees shallow: about 20 times faster than one fine cut
 /// on a scan, with the fine cut's result wherever the coarse one is within a block of it.
 ///
+/// With a prior of several cells (leaves finer than the sensor places a surface) the coarse
+/// cut is itself done this way, on as many levels as [`coarse_levels`] gives.
+///
 /// It is an approximation, and where the prior is balanced it decides: a block's faces cost
 /// what its cell nearest an observation costs, which favours walls along the observed
 /// surface over caps far from it. On the vase development scan the fine cut alone fills the
 /// unseen body (mean error 1.4 leaves) while this keeps it open (0.43).
-fn close_coarse(dims: [usize; 3], known: &[Known], cost: &[u8]) -> Vec<bool> {
+fn close_coarse(dims: [usize; 3], known: &[Known], cost: &[u8], levels: u32) -> Vec<bool> {
+    close_coarse_from(dims, known, cost, levels, false)
+}
+
+/// [`close_coarse`] with `levels` coarser levels, on `dims` cells that are themselves
+/// `blocks` of a finer level or not.
+///
+/// With one level under the cells (`levels` 1, not `blocks`: 1 mm leaves) this is the
+/// two-level cut described above, unchanged. In a stack of levels, two things differ, each
+/// found by a case the plain stack got wrong:
+/// - a tie between solid and empty votes is solid: an observed wall two cells thick (the
+///   marked layer and the one sealed behind it) fills one block beside an empty one, and as
+///   an unknown block it vanished from the level above, which then opened the interior it
+///   enclosed (a noise-free box at 0.25 mm came out 98 % hollow);
+/// - the band that the level below decides again is two blocks wide instead of one: a
+///   coarse level that misjudged a thin unseen region beside the platform (the wedge under
+///   an upright torus, at 0.5 mm) otherwise fixed it, and the base no longer reached the
+///   platform.
+///
+/// Cells seen empty stay empty and solid cells solid at every level, however their block
+/// is labelled: the coarse levels only decide where the unknown cells far from the cut go.
+fn close_coarse_from(
+    dims: [usize; 3],
+    known: &[Known],
+    cost: &[u8],
+    levels: u32,
+    blocks: bool,
+) -> Vec<bool> {
+    let stacked = blocks || levels > 1;
     let cd = dims.map(|d| d.div_ceil(2));
     let mut votes = vec![(0u8, 0u8); cd[0] * cd[1] * cd[2]];
     let mut coarse_cost = vec![u8::MAX; votes.len()];
@@ -409,13 +440,25 @@ fn close_coarse(dims: [usize; 3], known: &[Known], cost: &[u8]) -> Vec<bool> {
         .map(|(&(e, s), &u)| match e.cmp(&s) {
             std::cmp::Ordering::Greater => Known::Empty,
             std::cmp::Ordering::Less => Known::Solid,
+            std::cmp::Ordering::Equal if stacked && s > 0 => Known::Solid,
             std::cmp::Ordering::Equal if u || e > 0 => Known::Unknown,
             std::cmp::Ordering::Equal => Known::Excluded,
         })
         .collect();
-    let coarse_inside = close_unknown_weighted(cd, &coarse, &coarse_cost);
+    let coarse_inside = if levels > 1 {
+        close_coarse_from(cd, &coarse, &coarse_cost, levels - 1, true)
+    } else {
+        close_unknown_weighted(cd, &coarse, &coarse_cost)
+    };
     // Blocks whose 3 × 3 × 3 neighbourhood is all on their side (beyond the box: outside).
-    let uniform = uniform_blocks(cd, &coarse_inside);
+    let mut uniform = uniform_blocks(cd, &coarse_inside);
+    if stacked {
+        // Two blocks wide: a block is kept only if every neighbour is uniform too.
+        let u2 = uniform_blocks(cd, &uniform);
+        for (u, w) in uniform.iter_mut().zip(u2) {
+            *u &= w;
+        }
+    }
     // The fine problem in a band around the coarse cut: unknown cells of uniform blocks take
     // their block's side; the rest are decided again, cell by cell.
     let mut fine = Vec::with_capacity(known.len());
@@ -438,6 +481,27 @@ fn close_coarse(dims: [usize; 3], known: &[Known], cost: &[u8]) -> Vec<bool> {
         }
     }
     close_unknown_weighted(dims, &fine, cost)
+}
+
+/// How many coarser levels [`close_coarse`] stacks for a prior of `prior_cells`
+/// ([`close_cells`]): one (blocks of 2 cells), and one more for every further doubling of
+/// the block that still fits within the prior — the uncertainty of an observed surface's
+/// position, in cells — so that no level places a surface more coarsely than the
+/// observations place it before the band below refines it. On an object 0.7 m away (a
+/// prior of about 3.7 mm) that is one level at 1 mm leaves (the closure as it was), two at
+/// 0.5 mm and three at 0.25 mm: the coarsest cut stays on blocks of about 2 mm whatever
+/// the leaf, instead of growing with the cell count (at 0.5 mm the one-level cut took
+/// 3.1 s of the vase's 3.8 s closure, for 571 000 blocks).
+fn coarse_levels(prior_cells: f32) -> u32 {
+    let mut levels = 1;
+    // Side of the next level's blocks, in cells; a prior that is not finite (every face
+    // priced alike) or not positive keeps one level.
+    let mut block = 4.0f32;
+    while prior_cells.is_finite() && block <= prior_cells && levels < 8 {
+        levels += 1;
+        block *= 2.0;
+    }
+    levels
 }
 
 /// For each cell of a box of `dims` cells (x fastest), whether its 3 × 3 × 3 neighbourhood
@@ -1143,6 +1207,76 @@ mod tests {
             !close_unknown_weighted(dims, &known, &cost)[centre],
             "priced by distance, the well stays open"
         );
+    }
+
+    /// One coarse level for priors under 4 cells (1 mm leaves at 0.7 m), one more for every
+    /// doubling of the block that fits within the prior.
+    #[test]
+    fn coarse_levels_follow_the_prior() {
+        for (prior, levels) in [
+            (f32::NAN, 1),
+            (f32::INFINITY, 1),
+            (-1.0, 1),
+            (0.5, 1),
+            (3.7, 1),
+            (4.0, 2),
+            (6.5, 2),
+            (12.0, 3),
+            (26.0, 4),
+            (1e9, 8),
+        ] {
+            assert_eq!(coarse_levels(prior), levels, "prior {prior}");
+        }
+    }
+
+    /// Stacked coarse levels decide as one coarse level and as the plain cut do: a cup (an
+    /// observed wall and floor around an unseen well, seen empty over its mouth), a closed
+    /// box with an unseen interior whose walls (two cells thick) fill whole blocks beside
+    /// empty ones, and a slab over a tunnel seen empty, unseen between, priced by the
+    /// distance to the observations.
+    #[test]
+    fn stacked_coarse_levels_decide_as_one_level() {
+        let dims = [56, 40, 52];
+        let n = dims[0] * dims[1] * dims[2];
+        let mut known = vec![Known::Empty; n];
+        let mut marked = vec![false; n];
+        let wall =
+            |a: usize, lo: usize, hi: usize| a == lo || a == lo + 1 || a == hi || a + 1 == hi;
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    let in_cup =
+                        (2..=25).contains(&x) && (2..=25).contains(&z) && (2..=21).contains(&y);
+                    let cup_wall = in_cup && (wall(x, 2, 25) || wall(z, 2, 25) || y <= 3);
+                    let in_box =
+                        (30..=49).contains(&x) && (4..=21).contains(&z) && (2..=17).contains(&y);
+                    let box_wall = in_box && (wall(x, 30, 49) || wall(z, 4, 21) || wall(y, 2, 17));
+                    let in_slab = (30..=49).contains(&x) && (28..=47).contains(&z) && y <= 15;
+                    let slab_wall = in_slab && (y >= 14 || wall(x, 30, 49));
+                    let i = idx(dims, x, y, z);
+                    if cup_wall || box_wall || slab_wall {
+                        known[i] = Known::Solid;
+                        marked[i] = true;
+                    } else if (in_cup && y < 10) || in_box || (in_slab && y >= 6) {
+                        known[i] = Known::Unknown;
+                    }
+                }
+            }
+        }
+        let cost = face_costs(dims, &marked, 2.0);
+        let one = close_coarse(dims, &known, &cost, 1);
+        assert!(one[idx(dims, 40, 10, 12)], "the box's inside is solid");
+        assert!(!one[idx(dims, 13, 8, 13)], "the cup stays open");
+        assert!(
+            close_unknown_weighted(dims, &known, &cost) == one,
+            "one coarse level decides as the plain cut"
+        );
+        for levels in 2..=4 {
+            assert!(
+                close_coarse(dims, &known, &cost, levels) == one,
+                "{levels} levels decide otherwise"
+            );
+        }
     }
 
     /// A slab whose marked top layer lies outside its surface (centres above it): the cell
