@@ -56,15 +56,14 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
     ] {
         assert!(stats.get(key).is_some(), "stats lack {key}: {stats}");
     }
-    // Simplification (on by default) started from the marched mesh and left the output.
+    // Simplification (on by default) took the marched mesh to the output by collapses (that
+    // its figures are the marched mesh's and the output's is the pieces proptest's
+    // assertion, in voxoct-mesh).
     let simp = &stats["simplification"];
-    assert_eq!(
-        simp["triangles_before"], stats["mesh_marched_triangles"],
-        "{stats}"
-    );
-    assert_eq!(simp["triangles_after"], stats["mesh_triangles"], "{stats}");
+    assert!(simp["collapses"].as_u64().unwrap() > 0, "{stats}");
     assert!(
-        simp["triangles_after"].as_u64().unwrap() < simp["triangles_before"].as_u64().unwrap(),
+        stats["mesh_triangles"].as_u64().unwrap()
+            < stats["mesh_marched_triangles"].as_u64().unwrap(),
         "{stats}"
     );
     for key in [

@@ -80,13 +80,10 @@ pub struct MeshSteps {
     pub simplify: f64,
 }
 
-/// What simplification did (`--stats`), summed over the pieces of a large mesh.
+/// What simplification did (`--stats`), summed over the pieces of a large mesh; it took
+/// `mesh_marched_triangles` to `mesh_triangles`.
 #[derive(Debug, Serialize)]
 pub struct Simplification {
-    /// Triangles it started from (the smoothed, marched mesh).
-    pub triangles_before: usize,
-    /// Triangles it left.
-    pub triangles_after: usize,
     /// Edge collapses made.
     pub collapses: usize,
     /// Collapse passes (the most any piece needed).
@@ -183,8 +180,6 @@ impl Stats {
             mesh_triangles: mesh.triangles.len(),
             mesh_marched_triangles: r.marched_triangles,
             simplification: r.simplify.as_ref().map(|s| Simplification {
-                triangles_before: s.triangles_before,
-                triangles_after: s.triangles_after,
                 collapses: s.collapses,
                 passes: s.passes,
                 retries: s.retries,

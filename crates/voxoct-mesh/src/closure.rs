@@ -385,14 +385,14 @@ pub const MAX_FACE_COST: u8 = 40;
 /// surface over caps far from it. On the vase development scan the fine cut alone fills the
 /// unseen body (mean error 1.4 leaves) while this keeps it open (0.43).
 fn close_coarse(dims: [usize; 3], known: &[Known], cost: &[u8], levels: u32) -> Vec<bool> {
-    close_coarse_from(dims, known, cost, levels, false)
+    close_coarse_from(dims, known, cost, levels, levels > 1)
 }
 
-/// [`close_coarse`] with `levels` coarser levels, on `dims` cells that are themselves
-/// `blocks` of a finer level or not.
+/// [`close_coarse`] with `levels` coarser levels, every level of a `stacked` cut (one of
+/// more than one coarse level) labelled and banded as such.
 ///
-/// With one level under the cells (`levels` 1, not `blocks`: 1 mm leaves) this is the
-/// two-level cut described above, unchanged. In a stack of levels, two things differ, each
+/// With one level under the cells (not `stacked`: 1 mm leaves) this is the two-level cut
+/// described above, unchanged. In a stack of levels, two things differ, each
 /// found by a case the plain stack got wrong:
 /// - a tie between solid and empty votes is solid: an observed wall two cells thick (the
 ///   marked layer and the one sealed behind it) fills one block beside an empty one, and as
@@ -410,9 +410,8 @@ fn close_coarse_from(
     known: &[Known],
     cost: &[u8],
     levels: u32,
-    blocks: bool,
+    stacked: bool,
 ) -> Vec<bool> {
-    let stacked = blocks || levels > 1;
     let cd = dims.map(|d| d.div_ceil(2));
     let mut votes = vec![(0u8, 0u8); cd[0] * cd[1] * cd[2]];
     let mut coarse_cost = vec![u8::MAX; votes.len()];
@@ -446,7 +445,7 @@ fn close_coarse_from(
         })
         .collect();
     let coarse_inside = if levels > 1 {
-        close_coarse_from(cd, &coarse, &coarse_cost, levels - 1, true)
+        close_coarse_from(cd, &coarse, &coarse_cost, levels - 1, stacked)
     } else {
         close_unknown_weighted(cd, &coarse, &coarse_cost)
     };

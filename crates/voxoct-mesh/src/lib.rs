@@ -212,7 +212,7 @@ pub struct Simplified {
 }
 
 /// `into` summed with `other` for [`Simplified::simplify`] on the pieces path.
-fn add_stats(into: &mut SimplifyStats, other: SimplifyStats) {
+fn add_stats(into: &mut SimplifyStats, other: &SimplifyStats) {
     into.triangles_before += other.triangles_before;
     into.triangles_after += other.triangles_after;
     into.collapses += other.collapses;
@@ -221,7 +221,7 @@ fn add_stats(into: &mut SimplifyStats, other: SimplifyStats) {
     into.frozen_vertices += other.frozen_vertices;
     into.new_intersections += other.new_intersections;
     if into.skipped.is_none() {
-        into.skipped = other.skipped;
+        into.skipped.clone_from(&other.skipped);
     }
 }
 
@@ -410,7 +410,7 @@ fn by_pieces(
                 let mut sum = SimplifyStats::default();
                 for (d, st) in done.iter().zip(&group_stats) {
                     if let (Some(_), Some(st)) = (d, st) {
-                        add_stats(&mut sum, st.clone());
+                        add_stats(&mut sum, st);
                     }
                 }
                 sum
