@@ -64,6 +64,13 @@
 //! could not move. Last, one run over the whole mesh for what is left. A triangle target
 //! ([`Simplify::target_triangles`]) is met in cost order over the whole mesh, as one
 //! region. Figures: see BENCHMARKS.md (`cargo bench -p voxoct-mesh`).
+//!
+//! # Memory
+//! The rounds work on the input itself, renumbered in place (it is numbered back when
+//! left unchanged), beside one working copy. The quadrics (88 bytes a vertex, the largest
+//! arrays) are never held for the whole input: each first-phase region computes its
+//! vertices' from its own copy, and only the vertices that phase leaves (a fraction of
+//! the input's) get one in the shared state for the later phases.
 
 use crate::mesh::{Mesh, TopologyError};
 
@@ -191,15 +198,38 @@ pub(crate) fn simplify_in_regions(
     {
         return stats;
     }
-    let mut frozen = vec![false; nv];
-    let original = renumbered_by_first_use(mesh);
+    // The rounds work on the input itself, renumbered (no copy of it is kept); it is
+    // numbered back when it is left unchanged.
+    let order = renumber_by_first_use(mesh);
     // A triangle target is met in the order of cost over the whole mesh: one region.
     let per_region = if opts.target_triangles.is_some() {
         0
     } else {
         per_region
     };
-    let mut rounds = regions::Rounds::new(&original, opts, per_region);
+    match rounds(mesh, opts, per_region, &mut stats) {
+        Some(out) => {
+            *mesh = out;
+            stats.triangles_after = mesh.triangles.len();
+        }
+        None => restore_numbering(mesh, &order),
+    }
+    stats
+}
+
+/// The rounds of collapses on `original` (renumbered by first use) until one introduces
+/// no self-intersection: its result, a closed manifold, or `None` when the input is to be
+/// left unchanged (after [`MAX_RETRIES`] rounds, or when the result fails the check; the
+/// error is then in `stats.skipped`).
+fn rounds(
+    original: &Mesh,
+    opts: &Simplify,
+    per_region: usize,
+    stats: &mut SimplifyStats,
+) -> Option<Mesh> {
+    let nv = original.vertices.len();
+    let mut frozen = vec![false; nv];
+    let mut rounds = regions::Rounds::new(original, opts, per_region);
     // The latest round's result and every self-intersecting triangle of it.
     let mut last: Option<recheck::Previous> = None;
     loop {
@@ -229,18 +259,14 @@ pub(crate) fn simplify_in_regions(
             // of the time) makes sure that no rounding breaks the promise.
             if let Err(e) = candidate.check_closed_manifold() {
                 stats.skipped = Some(e);
-                return stats;
+                return None;
             }
-            *mesh = candidate;
-            stats.triangles_after = mesh.triangles.len();
             stats.passes = passes;
             stats.collapses = collapses;
-            return stats;
+            return Some(candidate);
         }
         if stats.retries == MAX_RETRIES {
-            // Give up: `mesh` is still the caller's input, untouched.
-            stats.triangles_after = mesh.triangles.len();
-            return stats;
+            return None;
         }
         stats.retries += 1;
         // Freeze every original vertex merged into a vertex of an intersecting triangle or
@@ -277,29 +303,52 @@ pub(crate) fn simplify_in_regions(
 /// A round's collapses `(u, w)` in order, and where each pass's collapses end.
 type RoundLog = (Vec<(u32, u32)>, Vec<usize>);
 
-/// `mesh` with its vertices numbered in the order the triangles first use them, so that
-/// walking the triangles in order touches vertex data in order (the marcher numbers
-/// vertices by grid edge, far from its triangle order: this halves the time).
-fn renumbered_by_first_use(mesh: &Mesh) -> Mesh {
-    let mut map = vec![u32::MAX; mesh.vertices.len()];
-    let mut vertices = Vec::with_capacity(mesh.vertices.len());
-    let mut triangles = Vec::with_capacity(mesh.triangles.len());
-    for t in &mesh.triangles {
-        let mut out = [0u32; 3];
-        for (o, &k) in out.iter_mut().zip(t) {
-            let m = &mut map[k as usize];
+/// Renumbers `mesh`'s vertices in the order the triangles first use them (the unused ones
+/// last, in their order), so that walking the triangles in order touches vertex data in
+/// order (the marcher numbers vertices by grid edge, far from its triangle order: this
+/// halves the time); returns the old index of each new one, for [`restore_numbering`].
+fn renumber_by_first_use(mesh: &mut Mesh) -> Vec<u32> {
+    let nv = mesh.vertices.len();
+    let mut new_of = vec![u32::MAX; nv];
+    let mut old_of = Vec::with_capacity(nv);
+    for t in &mut mesh.triangles {
+        for k in t.iter_mut() {
+            let m = &mut new_of[*k as usize];
             if *m == u32::MAX {
-                *m = vertices.len() as u32;
-                vertices.push(mesh.vertices[k as usize]);
+                *m = old_of.len() as u32;
+                old_of.push(*k);
             }
-            *o = *m;
+            *k = *m;
         }
-        triangles.push(out);
     }
-    Mesh {
-        vertices,
-        triangles,
+    for (old, m) in new_of.iter().enumerate() {
+        if *m == u32::MAX {
+            old_of.push(old as u32);
+        }
     }
+    drop(new_of);
+    mesh.vertices = old_of.iter().map(|&o| mesh.vertices[o as usize]).collect();
+    old_of
+}
+
+/// Undoes [`renumber_by_first_use`], given what it returned.
+fn restore_numbering(mesh: &mut Mesh, old_of: &[u32]) {
+    let mut vertices = mesh.vertices.clone();
+    for (new, &old) in old_of.iter().enumerate() {
+        vertices[old as usize] = mesh.vertices[new];
+    }
+    mesh.vertices = vertices;
+    for t in &mut mesh.triangles {
+        *t = t.map(|k| old_of[k as usize]);
+    }
+}
+
+/// `mesh` renumbered by first use, as a copy.
+#[cfg(test)]
+fn renumbered_by_first_use(mesh: &Mesh) -> Mesh {
+    let mut out = mesh.clone();
+    renumber_by_first_use(&mut out);
+    out
 }
 
 /// The changed triangles (with a moved vertex) among `all`, the triangles that cut through

@@ -101,15 +101,39 @@ impl Quadric {
 /// Ridge of [`Quadric::minimum`] relative to the quadric's trace.
 pub(super) const RIDGE: f64 = 1e-3;
 
-/// Per-vertex quadrics of `mesh` (in coordinates relative to its first vertex) and
-/// area-weighted normals: each triangle's plane and normal added to its three corners (one
-/// pass in triangle order; the vertices are numbered by first use, so the writes are local).
+/// [`initial_quadrics_at`] relative to `mesh`'s first vertex ([`origin`]).
+#[cfg(test)]
 pub(super) fn initial_quadrics(mesh: &Mesh) -> (Vec<Quadric>, Vec<Vec3>) {
-    let o = origin(mesh);
+    initial_quadrics_at(mesh, origin(mesh))
+}
+
+/// Per-vertex quadrics of `mesh` (in coordinates relative to `o`) and area-weighted
+/// normals: each triangle's plane and normal added to its three corners (one pass in
+/// triangle order; the vertices are numbered by first use, so the writes are local).
+pub(super) fn initial_quadrics_at(mesh: &Mesh, o: DVec3) -> (Vec<Quadric>, Vec<Vec3>) {
     let nv = mesh.vertices.len();
     let mut quad = vec![Quadric::default(); nv];
     let mut nrm = vec![Vec3::ZERO; nv];
+    add_initial(mesh, o, |k| Some(k as usize), &mut quad, &mut nrm);
+    (quad, nrm)
+}
+
+/// Adds each triangle's plane and normal, in triangle order, to the slot `slot` gives for
+/// each of its corners (none: skipped). A vertex's sum is its initial quadric and normal
+/// when every triangle around it is in `mesh` (in the same order as in the whole mesh,
+/// so the same to the bit).
+pub(super) fn add_initial(
+    mesh: &Mesh,
+    o: DVec3,
+    slot: impl Fn(u32) -> Option<usize>,
+    quad: &mut [Quadric],
+    nrm: &mut [Vec3],
+) {
     for t in &mesh.triangles {
+        let slots = t.map(&slot);
+        if slots.iter().all(Option::is_none) {
+            continue;
+        }
         let [a, b, c] = t.map(|k| mesh.vertices[k as usize]);
         let nf = (b - a).cross(c - a);
         let [ad, bd, cd] = [a, b, c].map(|p| p.as_dvec3() - o);
@@ -121,12 +145,11 @@ pub(super) fn initial_quadrics(mesh: &Mesh) -> (Vec<Quadric>, Vec<Vec3>) {
         } else {
             Quadric::default()
         };
-        for &k in t {
-            quad[k as usize].add(&plane);
-            nrm[k as usize] += nf;
+        for s in slots.into_iter().flatten() {
+            quad[s].add(&plane);
+            nrm[s] += nf;
         }
     }
-    (quad, nrm)
 }
 
 /// The origin of the quadrics' coordinates.

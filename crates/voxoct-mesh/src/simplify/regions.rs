@@ -283,8 +283,13 @@ pub(super) struct Round {
 /// does not depend on the order.
 struct State {
     pos: Vec<Vec3>,
+    /// The quadrics and normals of the vertices that have a slot (`slot`, by global index;
+    /// `u32::MAX`: none). In the first phase there are none: each region's copy computes
+    /// its own vertices' from its triangles (exactly, for every vertex it may read), and
+    /// only the vertices the phase leaves get one (the largest arrays follow what is left).
     quad: Vec<Quadric>,
     nrm: Vec<Vec3>,
+    slot: Vec<u32>,
     parent: Vec<u32>,
     moved: Vec<bool>,
     /// The triangles the phase started with (its regions' triangle numbers), each
@@ -307,8 +312,10 @@ impl State {
             let g = g as usize;
             self.moved[g] = true;
             self.pos[g] = pos;
-            self.quad[g] = quad;
-            self.nrm[g] = nrm;
+            if let Some(&s) = self.slot.get(g) {
+                self.quad[s as usize] = quad;
+                self.nrm[s as usize] = nrm;
+            }
         }
         for &id in &region.ids[..region.own] {
             self.slots[id as usize] = [u32::MAX; 3];
@@ -318,9 +325,11 @@ impl State {
         }
     }
 
-    /// The surviving triangles, in order, as the next phase's.
+    /// The surviving triangles, in order, as the next phase's (their buffer shrunk to
+    /// them: a phase leaves a fraction of its triangles).
     fn compact(&mut self) {
         self.slots.retain(|t| t[0] != u32::MAX);
+        self.slots.shrink_to_fit();
     }
 
     /// Runs every region of `plan` on this state (the vertices `active` first tried,
@@ -348,10 +357,7 @@ impl State {
                     (results[r].clone(), (Vec::new(), Vec::new()), 0)
                 }
                 _ => {
-                    let copy = {
-                        let st = shared.lock().unwrap_or_else(PoisonError::into_inner);
-                        region_copy(&st, region, plan, frozen, active, opts, origin)
-                    };
+                    let copy = region_copy(&shared, region, plan, frozen, active, opts, origin);
                     let replay = done.map(|(_, logs, _)| &logs[r]);
                     let print = cache.map_or(0, |_| fingerprint(&copy, region));
                     let hit = cache.and_then(|c| {
@@ -399,9 +405,6 @@ pub(super) struct Rounds<'m> {
     frozen_then: Vec<bool>,
     /// The second phase's results of the latest round, by cube (increasing).
     shifted_done: Vec<Cached>,
-    /// The input's quadrics and normals, computed alongside the plan, for the first round
-    /// (a later one computes them again).
-    quadrics: Option<(Vec<Quadric>, Vec<Vec3>)>,
 }
 
 /// A region's cube, the fingerprint of its copy and its result.
@@ -442,20 +445,12 @@ impl<'m> Rounds<'m> {
     /// No round made yet; regions of about `per_region` triangles (0: one region, and no
     /// other phase).
     pub(super) fn new(mesh: &'m Mesh, opts: &'m Simplify, per_region: usize) -> Self {
-        // The plan's serial parts and the quadrics (one serial pass) overlap.
-        let ((grid, plan), quadrics) = par::join(
-            || {
-                let grid = Grid::new(mesh, per_region);
-                let plan = plan(mesh, grid.as_ref());
-                (grid, plan)
-            },
-            || super::quadric::initial_quadrics(mesh),
-        );
+        let grid = Grid::new(mesh, per_region);
+        let plan = plan(mesh, grid.as_ref());
         Self {
             mesh,
             plan,
             grid,
-            quadrics: Some(quadrics),
             opts,
             done: Vec::new(),
             logs: Vec::new(),
@@ -469,15 +464,12 @@ impl<'m> Rounds<'m> {
     pub(super) fn next(&mut self, frozen: &[bool]) -> Round {
         let (mesh, opts, plan) = (self.mesh, self.opts, &self.plan);
         let origin = super::quadric::origin(mesh);
-        let (quad, nrm) = self
-            .quadrics
-            .take()
-            .unwrap_or_else(|| super::quadric::initial_quadrics(mesh));
         let nv = mesh.vertices.len();
         let state = State {
             pos: mesh.vertices.clone(),
-            quad,
-            nrm,
+            quad: Vec::new(),
+            nrm: Vec::new(),
+            slot: Vec::new(),
             parent: (0..nv as u32).collect(),
             moved: vec![false; nv],
             slots: mesh.triangles.clone(),
@@ -512,6 +504,7 @@ impl<'m> Rounds<'m> {
         let mut active: Vec<bool> = plan.movable.iter().map(|m| !m).collect();
         // The second phase: the shifted cubes, from the vertices the first could not move.
         if let Some(grid) = &self.grid {
+            self.give_slots(&mut state, origin);
             let tris = std::mem::take(&mut state.slots);
             let lookup = Mesh {
                 vertices: std::mem::take(&mut state.pos),
@@ -540,6 +533,7 @@ impl<'m> Rounds<'m> {
             mut pos,
             quad,
             nrm,
+            slot,
             mut parent,
             mut moved,
             mut slots,
@@ -577,13 +571,18 @@ impl<'m> Rounds<'m> {
             *t = t.map(|k| local_of[k as usize]);
         }
         drop(local_of);
-        // The quadrics (the largest arrays) are compacted in place.
+        let of = |g: &u32| slot[at(g)] as usize;
+        let quadrics = (
+            live.iter().map(|g| quad[of(g)]).collect(),
+            live.iter().map(|g| nrm[of(g)]).collect(),
+        );
+        drop((quad, nrm, slot));
         let mut seam = Collapser::new(
             Mesh {
                 vertices: live.iter().map(|g| pos[at(g)]).collect(),
                 triangles: slots,
             },
-            (compacted(quad, &live), compacted(nrm, &live)),
+            quadrics,
             live.iter().map(|g| frozen[at(g)]).collect(),
             opts,
             origin,
@@ -613,10 +612,62 @@ impl<'m> Rounds<'m> {
     }
 }
 
+impl Rounds<'_> {
+    /// Gives the vertices the first phase left (those its triangles use) a slot, with their
+    /// quadric and normal: a moved one's from its region's result, the others' initial ones
+    /// (one pass over the input's triangles, in order).
+    fn give_slots(&self, state: &mut State, origin: DVec3) {
+        let mut slot = vec![u32::MAX; state.pos.len()];
+        for t in &state.slots {
+            for &k in t {
+                slot[k as usize] = 0;
+            }
+        }
+        let mut n = 0u32;
+        for s in &mut slot {
+            if *s == 0 {
+                *s = n;
+                n += 1;
+            }
+        }
+        let mut quad = vec![Quadric::default(); n as usize];
+        let mut nrm = vec![Vec3::ZERO; n as usize];
+        for result in &self.done {
+            for &(g, _, q, m) in &result.moved {
+                let s = slot[g as usize];
+                if s != u32::MAX {
+                    quad[s as usize] = q;
+                    nrm[s as usize] = m;
+                }
+            }
+        }
+        // The unmoved ones: two halves of the slots at once, each summing its vertices'
+        // triangles in order (so the sums do not depend on the threads).
+        let (moved, half) = (&state.moved, n / 2);
+        let pick = |lo: u32, hi: u32| {
+            let slot = &slot;
+            move |k: u32| {
+                let s = slot[k as usize];
+                (s >= lo && s < hi && !moved[k as usize]).then(|| (s - lo) as usize)
+            }
+        };
+        let (qa, qb) = quad.split_at_mut(half as usize);
+        let (na, nb) = nrm.split_at_mut(half as usize);
+        let mesh = self.mesh;
+        par::join(
+            || super::quadric::add_initial(mesh, origin, pick(0, half), qa, na),
+            || super::quadric::add_initial(mesh, origin, pick(half, n), qb, nb),
+        );
+        (state.quad, state.nrm, state.slot) = (quad, nrm, slot);
+    }
+}
+
 /// A region's copy of the mesh, ready to run: its vertices (positions, quadrics,
-/// normals), its triangles, and which of its vertices may move and are tried first.
+/// normals), its triangles, and which of its vertices may move and are tried first. The
+/// state is locked only to read it; the quadrics are computed from the copy when the state
+/// holds none (the first phase).
 fn region_copy(
-    st: &State,
+    shared: &Mutex<State>,
     region: &Region,
     plan: &Plan,
     frozen: &[bool],
@@ -625,14 +676,26 @@ fn region_copy(
     origin: DVec3,
 ) -> Collapser {
     let verts = &region.verts;
-    let local = Mesh {
-        vertices: verts.iter().map(|&g| st.pos[g as usize]).collect(),
-        triangles: region.tris.clone(),
+    let (local, stored) = {
+        let st = shared.lock().unwrap_or_else(PoisonError::into_inner);
+        let local = Mesh {
+            vertices: verts.iter().map(|&g| st.pos[g as usize]).collect(),
+            triangles: region.tris.clone(),
+        };
+        let of = |g: u32| st.slot[g as usize] as usize;
+        let stored = (!st.slot.is_empty()).then(|| {
+            (
+                verts.iter().map(|&g| st.quad[of(g)]).collect(),
+                verts.iter().map(|&g| st.nrm[of(g)]).collect(),
+            )
+        });
+        (local, stored)
     };
-    let quadrics = (
-        verts.iter().map(|&g| st.quad[g as usize]).collect(),
-        verts.iter().map(|&g| st.nrm[g as usize]).collect(),
-    );
+    // Every vertex whose triangles are all the region's own has them in mesh order here,
+    // so its sums are those of the whole mesh to the bit; those are the only vertices
+    // whose quadric or normal a region's run reads (the ends of a collapse are movable,
+    // and their neighbours have only triangles of the region).
+    let quadrics = stored.unwrap_or_else(|| super::quadric::initial_quadrics_at(&local, origin));
     let fixed = verts
         .iter()
         .map(|&g| frozen[g as usize] || !plan.movable[g as usize])
@@ -658,16 +721,6 @@ struct RegionResult {
     tris: Vec<(u32, [u32; 3])>,
     passes: usize,
     collapses: usize,
-}
-
-/// `items` with only the items at the increasing indices `keep`, in place.
-fn compacted<T: Copy>(mut items: Vec<T>, keep: &[u32]) -> Vec<T> {
-    for (l, &g) in keep.iter().enumerate() {
-        items[l] = items[g as usize];
-    }
-    items.truncate(keep.len());
-    items.shrink_to_fit();
-    items
 }
 
 /// Runs a region's copy, or replays `replay` on it; returns its result and its collapses.
