@@ -55,6 +55,20 @@ fn a_ring_on_its_rim_keeps_its_hole_open() {
     assert_eq!(mesh.stats().components, 1);
 }
 
+/// The same ring at 0.5 mm, where the closure's coarse cut is solved on two levels of
+/// blocks: its base stays on the platform (within a leaf of y = 0) and it keeps its volume.
+/// A band of one block around the coarse cut lost the thin wedge beside the platform, and
+/// with it the base (the bottom came out 3 mm up).
+#[test]
+fn a_ring_keeps_its_base_at_half_a_millimetre() {
+    let leaf = 0.0005;
+    let (ratio, mesh) = volume_ratio("torus", leaf);
+    assert!((ratio - 1.0).abs() < 0.05, "volume ratio {ratio}");
+    assert_eq!(mesh.stats().components, 1);
+    let b = mesh.stats().bounds.expect("bounds");
+    assert!(b.min.y.abs() <= leaf, "base at {} m", b.min.y);
+}
+
 /// A box keeps its height: its base is closed on the platform (the clip box removes the
 /// readings of its lowest 3 mm, where no triangle marks it), within one leaf, and its top is
 /// within two leaves of the truth. (It is not hollow either: the volume is checked by
