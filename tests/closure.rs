@@ -64,8 +64,9 @@ fn a_ring_keeps_its_base_at_half_a_millimetre() {
     let leaf = 0.0005;
     let (ratio, mesh) = volume_ratio("torus", leaf);
     assert!((ratio - 1.0).abs() < 0.05, "volume ratio {ratio}");
-    assert_eq!(mesh.stats().components, 1);
-    let b = mesh.stats().bounds.expect("bounds");
+    let stats = mesh.stats();
+    assert_eq!(stats.components, 1);
+    let b = stats.bounds.expect("bounds");
     assert!(b.min.y.abs() <= leaf, "base at {} m", b.min.y);
 }
 

@@ -335,6 +335,12 @@ fn an_open_mesh_is_left_unchanged() {
     let (mut mesh, _, _) = sphere_mesh();
     mesh.triangles.pop();
     mesh.remove_unused_vertices();
+    // An unused vertex first: simplification renumbers the input in place while it works,
+    // and must number it back exactly, this one included.
+    mesh.vertices.insert(0, Vec3::splat(1.0));
+    for t in &mut mesh.triangles {
+        *t = t.map(|k| k + 1);
+    }
     let before = mesh.clone();
     let stats = simplify(&mut mesh, &Simplify::for_leaf(LEAF));
     assert!(stats.skipped.is_some());

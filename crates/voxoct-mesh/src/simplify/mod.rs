@@ -207,7 +207,7 @@ pub(crate) fn simplify_in_regions(
     } else {
         per_region
     };
-    match rounds(mesh, opts, per_region, &mut stats) {
+    match run_rounds(mesh, opts, per_region, &mut stats) {
         Some(out) => {
             *mesh = out;
             stats.triangles_after = mesh.triangles.len();
@@ -221,7 +221,7 @@ pub(crate) fn simplify_in_regions(
 /// no self-intersection: its result, a closed manifold, or `None` when the input is to be
 /// left unchanged (after [`MAX_RETRIES`] rounds, or when the result fails the check; the
 /// error is then in `stats.skipped`).
-fn rounds(
+fn run_rounds(
     original: &Mesh,
     opts: &Simplify,
     per_region: usize,

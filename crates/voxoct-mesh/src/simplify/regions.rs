@@ -553,19 +553,7 @@ impl<'m> Rounds<'m> {
         // On the vertices that are left only, numbered in the same order (so the run makes
         // the same collapses as on the global numbering), so that each pass's work follows
         // the mesh that is left rather than the input's vertex count.
-        let mut local_of = vec![u32::MAX; nv];
-        for t in &slots {
-            for &k in t {
-                local_of[k as usize] = 0;
-            }
-        }
-        let mut live = Vec::new();
-        for (g, l) in local_of.iter_mut().enumerate() {
-            if *l == 0 {
-                *l = live.len() as u32;
-                live.push(g as u32);
-            }
-        }
+        let (local_of, live) = numbered_used(nv, &slots);
         let at = |g: &u32| *g as usize;
         for t in &mut slots {
             *t = t.map(|k| local_of[k as usize]);
@@ -610,26 +598,14 @@ impl<'m> Rounds<'m> {
             moved,
         }
     }
-}
 
-impl Rounds<'_> {
     /// Gives the vertices the first phase left (those its triangles use) a slot, with their
     /// quadric and normal: a moved one's from its region's result, the others' initial ones
     /// (one pass over the input's triangles, in order).
     fn give_slots(&self, state: &mut State, origin: DVec3) {
-        let mut slot = vec![u32::MAX; state.pos.len()];
-        for t in &state.slots {
-            for &k in t {
-                slot[k as usize] = 0;
-            }
-        }
-        let mut n = 0u32;
-        for s in &mut slot {
-            if *s == 0 {
-                *s = n;
-                n += 1;
-            }
-        }
+        let (slot, used) = numbered_used(state.pos.len(), &state.slots);
+        let n = used.len() as u32;
+        drop(used);
         let mut quad = vec![Quadric::default(); n as usize];
         let mut nrm = vec![Vec3::ZERO; n as usize];
         for result in &self.done {
@@ -660,6 +636,25 @@ impl Rounds<'_> {
         );
         (state.quad, state.nrm, state.slot) = (quad, nrm, slot);
     }
+}
+
+/// The vertices (of `nv`) that `tris` use, numbered in increasing order: each one's number
+/// (`u32::MAX` for an unused one) and the used ones in order.
+fn numbered_used(nv: usize, tris: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
+    let mut number = vec![u32::MAX; nv];
+    for t in tris {
+        for &k in t {
+            number[k as usize] = 0;
+        }
+    }
+    let mut used = Vec::new();
+    for (g, n) in number.iter_mut().enumerate() {
+        if *n == 0 {
+            *n = used.len() as u32;
+            used.push(g as u32);
+        }
+    }
+    (number, used)
 }
 
 /// A region's copy of the mesh, ready to run: its vertices (positions, quadrics,
