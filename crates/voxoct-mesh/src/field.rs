@@ -4,6 +4,7 @@
 //! `tiled` module, memory that follows the marked cells) past [`FILL_LIMIT`]; both give the
 //! same cells.
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 
 use voxoct_core::glam::{IVec3, UVec3};
@@ -84,9 +85,10 @@ fn check_arguments(grid: &GridSpec, opts: &MeshOptions) -> Result<(), MeshError>
 /// Validates the grid and the cells; returns the marked cells as `(coord, value)` with the
 /// value in cells (mean signed distance / cell edge; `-inf` kept, a solid cell without an
 /// observed surface such as the closure adds, `closure::CLOSED_SDF`; 0 when NaN or `+inf`),
-/// and the inside rule.
+/// and the inside rule. Owned cells are freed as soon as they are converted, before the
+/// fill (they and their conversion are the two largest arrays of a solid's meshing).
 pub(crate) fn prepare(
-    cells: &[Cell],
+    cells: Cow<'_, [Cell]>,
     grid: &GridSpec,
     opts: &MeshOptions,
     out: &mut Vec<(UVec3, f32)>,
@@ -114,6 +116,7 @@ pub(crate) fn prepare(
             out.push((c.coord, v));
         }
     }
+    drop(cells);
     let flood = opts.solid || opts.placement == Placement::SignedDistance;
     let floor_layer = match opts.floor {
         Floor::None => None,

@@ -73,6 +73,7 @@
 pub use voxoct_core::glam;
 pub use voxoct_core::{Cell, GridSpec, Octree};
 
+use std::borrow::Cow;
 use std::time::{Duration, Instant};
 
 mod bitbox;
@@ -126,7 +127,7 @@ pub fn mesh_cells_certified(
     opts: &MeshOptions,
 ) -> Result<(Mesh, bool), MeshError> {
     let mut mesh = Mesh::default();
-    let certified = Mesher::new().run(cells, grid, opts, &mut mesh, false, true)?;
+    let certified = Mesher::new().run(Cow::Borrowed(cells), grid, opts, &mut mesh, false, true)?;
     Ok((mesh, certified))
 }
 
@@ -155,7 +156,8 @@ impl Mesher {
         opts: &MeshOptions,
         out: &mut Mesh,
     ) -> Result<(), MeshError> {
-        self.run(cells, grid, opts, out, true, true).map(|_| ())
+        self.run(Cow::Borrowed(cells), grid, opts, out, true, true)
+            .map(|_| ())
     }
 
     /// Meshes into `out`; without `keep`, the working buffers are freed before smoothing
@@ -164,7 +166,7 @@ impl Mesher {
     /// proved the mesh free of self-intersections ([`mesh_cells_certified`]).
     fn run(
         &mut self,
-        cells: &[Cell],
+        cells: Cow<'_, [Cell]>,
         grid: &GridSpec,
         opts: &MeshOptions,
         out: &mut Mesh,
@@ -266,8 +268,7 @@ pub fn mesh_cells_simplified(
     let mut times = StepTimes::default();
     let t = Instant::now();
     let mut mesh = Mesh::default();
-    Mesher::new().run(&cells, grid, opts, &mut mesh, false, false)?;
-    drop(cells);
+    Mesher::new().run(Cow::Owned(cells), grid, opts, &mut mesh, false, false)?;
     let whole = mesh.triangles.len() <= PIECES_PAST_TRIANGLES
         || simplify.is_some_and(|s| s.target_triangles.is_some());
     if whole {
@@ -513,7 +514,9 @@ mod tests {
             }
             let opts = MeshOptions { solid: false, ..MeshOptions::smooth() };
             let mut raw = Mesh::default();
-            Mesher::new().run(&cells, &grid, &opts, &mut raw, false, false).unwrap();
+            Mesher::new()
+                .run(Cow::Borrowed(&cells), &grid, &opts, &mut raw, false, false)
+                .unwrap();
             prop_assume!(!raw.triangles.is_empty());
             let s = Simplify::for_leaf(grid.cell);
             let simplify = simplified.then_some(&s);

@@ -54,18 +54,21 @@ pub(super) struct Index {
 }
 
 impl Index {
-    /// Indexes the `boxes` that `include` accepts, box `i` as triangle `ids[i]` (without
-    /// `ids`, as triangle `i`).
+    /// Indexes the boxes `box_of(i)`, `i < len`, that `include` accepts, box `i` as
+    /// triangle `ids[i]` (without `ids`, as triangle `i`). A box is computed where it is
+    /// used (a stored one is 32 bytes a triangle at the peak of a large mesh's check), and
+    /// only when `include` accepts it.
     #[inline(never)]
     pub(super) fn build(
-        boxes: &[[Vec3A; 2]],
+        len: usize,
+        box_of: impl Fn(usize) -> [Vec3A; 2] + Sync,
         ids: Option<&[u32]>,
         include: impl Fn(usize) -> bool + Sync,
     ) -> Self {
         // The bounds, summed extents and count of the included boxes, by fixed chunks (the
         // same sums whatever the threads).
-        let chunks = boxes.len().div_ceil(CHUNK);
-        let chunk = |c: usize| c * CHUNK..((c + 1) * CHUNK).min(boxes.len());
+        let chunks = len.div_ceil(CHUNK);
+        let chunk = |c: usize| c * CHUNK..((c + 1) * CHUNK).min(len);
         let mut parts = Vec::new();
         crate::par::map_into(&mut parts, chunks, |c| {
             let mut lo = Vec3A::splat(f32::INFINITY);
@@ -73,8 +76,11 @@ impl Index {
             let mut sum = 0.0f64;
             let mut n = 0usize;
             for t in chunk(c) {
-                let b = &boxes[t];
-                if include(t) && b[0].is_finite() && b[1].is_finite() {
+                if !include(t) {
+                    continue;
+                }
+                let b = box_of(t);
+                if b[0].is_finite() && b[1].is_finite() {
                     lo = lo.min(b[0]);
                     hi = hi.max(b[1]);
                     sum += f64::from((b[1] - b[0]).max_element());
@@ -118,7 +124,10 @@ impl Index {
         // Each box's range of cells, computed where it is used (not stored: 24 bytes a
         // triangle at the peak of a large mesh's check).
         let grid = &index;
-        let range = |t: usize| [grid.cell(boxes[t][0]), grid.cell(boxes[t][1])];
+        let range = |t: usize| {
+            let b = box_of(t);
+            [grid.cell(b[0]), grid.cell(b[1])]
+        };
         let mut totals: Vec<usize> = Vec::new();
         crate::par::map_into(&mut totals, chunks, |c| {
             chunk(c)
@@ -137,10 +146,10 @@ impl Index {
         // A counting sort by bucket, in `parts` consecutive runs of triangles counted and
         // placed in parallel: run `c`'s entries of a bucket go after those of runs before
         // it, so the layout is that of one run, whatever `parts` is.
-        let parts = crate::par::threads().clamp(1, boxes.len().div_ceil(1 << 14).max(1));
-        let run = boxes.len().div_ceil(parts);
+        let parts = crate::par::threads().clamp(1, len.div_ceil(1 << 14).max(1));
+        let run = len.div_ceil(parts);
         let runs: Vec<std::ops::Range<usize>> = (0..parts)
-            .map(|c| c * run..((c + 1) * run).min(boxes.len()))
+            .map(|c| c * run..((c + 1) * run).min(len))
             .collect();
         let mut cursors: Vec<Vec<u32>> = Vec::new();
         crate::par::map_into(&mut cursors, parts, |c| {
@@ -234,7 +243,7 @@ impl Index {
             if kt == NO_AXIS {
                 continue;
             }
-            let bt = ck.boxes[t as usize];
+            let bt = ck.tri_box(vertices, t);
             let cvt = ck.certified_vertices(t);
             let (lo, hi) = (self.cell(bt[0]), self.cell(bt[1]));
             for z in lo[2]..=hi[2] {
@@ -247,7 +256,7 @@ impl Index {
                             if touched[u as usize] || ku == NO_AXIS {
                                 continue;
                             }
-                            let bu = ck.boxes[u as usize];
+                            let bu = ck.tri_box(vertices, u);
                             if !(bt[0].cmple(bu[1]) & bu[0].cmple(bt[1])).all()
                                 || self.cell(bt[0].max(bu[0])) != [x, y, z]
                                 || shares_certified(cvt, ck.certified_vertices(u))
@@ -326,7 +335,7 @@ impl Index {
                 }
                 id[n] = t;
                 fl[n] = f;
-                let [lo, hi] = ck.boxes[t as usize];
+                let [lo, hi] = ck.tri_box(vertices, t);
                 for k in 0..3 {
                     bounds[k][n] = lo[k];
                     bounds[3 + k][n] = hi[k];

@@ -220,12 +220,11 @@ pub(crate) struct Checker<'a> {
     /// improper.
     f32_degenerate: bool,
     facts: Vec<(u8, u8)>,
-    boxes: Vec<[Vec3A; 2]>,
     fans: VertexFans,
     cert: Vec<bool>,
-    /// Per triangle, its vertices whose fans are certified (others `u32::MAX`).
-    cv: Vec<[u32; 3]>,
-    /// The grid over the boxes the triangles had when the search was prepared.
+    /// The grid over the boxes the triangles had when the search was prepared. A
+    /// triangle's current box and certified vertices are computed where they are used
+    /// (stored, they were 44 bytes a triangle at the peak of a large mesh's smoothing).
     index: Index,
     /// The triangles moved since then (their boxes in `index` are stale), as flags and
     /// as a list in the order they were first moved.
@@ -256,30 +255,30 @@ impl<'a> Checker<'a> {
         let facts = crate::par::map(triangles, |t| fact(vertices, *t, f32_degenerate));
         // The fans (built on one thread) and certificates alongside the boxes and the grid,
         // so that the serial parts of each overlap the other's parallel ones.
-        let ((fans, cert, cv), (boxes, index)) = crate::par::join(
+        let ((fans, cert), index) = crate::par::join(
             || {
                 let fans = fans.unwrap_or_else(|| vertex_fans(nv, triangles));
                 let mut cert = Vec::new();
                 crate::par::map_into(&mut cert, nv, |v| {
                     certified(v as u32, fans.fan(v as u32), triangles, vertices, &facts)
                 });
-                let cv = crate::par::map(triangles, |t| certified_of(&cert, *t));
-                (fans, cert, cv)
+                (fans, cert)
             },
             || {
-                let boxes = crate::par::map(triangles, |t| tri_box(vertices, *t));
-                let index = Index::build(&boxes, None, |t| facts[t].0 != NO_AXIS);
-                (boxes, index)
+                Index::build(
+                    triangles.len(),
+                    |t| tri_box(vertices, triangles[t]),
+                    None,
+                    |t| facts[t].0 != NO_AXIS,
+                )
             },
         );
         Self {
             triangles,
             f32_degenerate,
             facts,
-            boxes,
             fans,
             cert,
-            cv,
             index,
             touched: Vec::new(),
             touched_list: Vec::new(),
@@ -302,7 +301,13 @@ impl<'a> Checker<'a> {
     /// The vertices of triangle `t` whose fans are certified (others `u32::MAX`).
     #[inline]
     fn certified_vertices(&self, t: u32) -> [u32; 3] {
-        self.cv[t as usize]
+        certified_of(&self.cert, self.triangles[t as usize])
+    }
+
+    /// Triangle `t`'s current bounding box.
+    #[inline]
+    fn tri_box(&self, vertices: &[Vec3], t: u32) -> [Vec3A; 2] {
+        tri_box(vertices, self.triangles[t as usize])
     }
 
     /// After `moved` vertices changed position: updates what depends on them and returns
@@ -332,7 +337,6 @@ impl<'a> Checker<'a> {
         for &t in &tris {
             let tri = self.triangles[t as usize];
             self.facts[t as usize] = fact(vertices, tri, self.f32_degenerate);
-            self.boxes[t as usize] = tri_box(vertices, tri);
             dirty[t as usize] = true;
             if !self.touched[t as usize] {
                 self.touched[t as usize] = true;
@@ -346,19 +350,12 @@ impl<'a> Checker<'a> {
             let ok = certified(v, self.fans.fan(v), self.triangles, vertices, &self.facts);
             self.cert[v as usize] = ok;
         }
-        for &v in &verts {
-            for &t in self.fans.fan(v) {
-                self.cv[t as usize] = certified_of(&self.cert, self.triangles[t as usize]);
-            }
-        }
-        let side_boxes: Vec<[Vec3A; 2]> = self
-            .touched_list
-            .iter()
-            .map(|&t| self.boxes[t as usize])
-            .collect();
-        let side = Index::build(&side_boxes, Some(&self.touched_list), |i| {
-            self.facts[self.touched_list[i] as usize].0 != NO_AXIS
-        });
+        let side = Index::build(
+            self.touched_list.len(),
+            |i| self.tri_box(vertices, self.touched_list[i]),
+            Some(&self.touched_list),
+            |i| self.facts[self.touched_list[i] as usize].0 != NO_AXIS,
+        );
         let mut out = side.pairs(self, vertices, Some(dirty));
         self.index
             .pairs_with_untouched(self, vertices, &tris, &self.touched, &mut out);
