@@ -70,7 +70,10 @@
 //! left unchanged), beside one working copy. The quadrics (88 bytes a vertex, the largest
 //! arrays) are never held for the whole input: each first-phase region computes its
 //! vertices' from its own copy, and only the vertices that phase leaves (a fraction of
-//! the input's) get one in the shared state for the later phases.
+//! the input's) get one in the shared state for the later phases. The working copy's
+//! triangles are the regions' copies: a phase's surviving triangles are put together from
+//! its regions' results at its end, and a result kept for a later round is shared, not
+//! copied, and holds no growth slack.
 
 use crate::mesh::{Mesh, TopologyError};
 

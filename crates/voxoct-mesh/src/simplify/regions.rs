@@ -21,7 +21,7 @@
 //! from the vertices that were not movable (their edges were never tried), and what those
 //! leave (where the borders of both cross) by one run over the whole mesh.
 
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use voxoct_core::glam::{DVec3, UVec3, Vec3};
 
@@ -279,8 +279,7 @@ pub(super) struct Round {
 /// The whole mesh during a round (global indices). A phase's regions read and write it
 /// under a lock, each when it starts and when it is done: a region reads only its own
 /// movable vertices (which no other region writes) and vertices no region may move, and
-/// writes only its own movable vertices and the slots of its own triangles, so the result
-/// does not depend on the order.
+/// writes only its own movable vertices, so the result does not depend on the order.
 struct State {
     pos: Vec<Vec3>,
     /// The quadrics and normals of the vertices that have a slot (`slot`, by global index;
@@ -292,8 +291,8 @@ struct State {
     slot: Vec<u32>,
     parent: Vec<u32>,
     moved: Vec<bool>,
-    /// The triangles the phase started with (its regions' triangle numbers), each
-    /// replaced by what its region made of it, or `[u32::MAX; 3]` once collapsed.
+    /// The triangles the latest phase left, in order (empty during a phase: the regions'
+    /// copies are the triangles it works on).
     slots: Vec<[u32; 3]>,
     /// The most passes a region of the phase made, and the collapses.
     passes: usize,
@@ -302,7 +301,7 @@ struct State {
 
 impl State {
     /// A region's result written back.
-    fn stitch(&mut self, region: &Region, out: &RegionResult) {
+    fn stitch(&mut self, out: &RegionResult) {
         self.passes = self.passes.max(out.passes);
         self.collapses += out.collapses;
         for &(g, p) in &out.parents {
@@ -317,19 +316,41 @@ impl State {
                 self.nrm[s as usize] = nrm;
             }
         }
-        for &id in &region.ids[..region.own] {
-            self.slots[id as usize] = [u32::MAX; 3];
-        }
-        for &(k, t) in &out.tris {
-            self.slots[region.ids[k as usize] as usize] = t;
-        }
     }
 
-    /// The surviving triangles, in order, as the next phase's (their buffer shrunk to
-    /// them: a phase leaves a fraction of its triangles).
-    fn compact(&mut self) {
-        self.slots.retain(|t| t[0] != u32::MAX);
-        self.slots.shrink_to_fit();
+    /// The triangles the regions of `plan` left (`results`, by region), in the order of
+    /// the phase's triangles (`count` of them, every one a region's own): each is placed
+    /// at the rank of its number among the survivors' (a bitmap of them, counted by word).
+    /// Built from the results rather than kept for the whole phase (a copy of its input's
+    /// triangles, while a phase leaves a fraction of them).
+    fn survivors(
+        plan: &Plan,
+        results: &[(Arc<RegionResult>, RoundLog, u64)],
+        count: usize,
+    ) -> Vec<[u32; 3]> {
+        let global = |region: &Region, k: u32| region.ids[k as usize] as usize;
+        let mut bits = vec![0u64; count.div_ceil(64)];
+        for (region, (result, _, _)) in plan.regions.iter().zip(results) {
+            for &(k, _) in &result.tris {
+                let id = global(region, k);
+                bits[id / 64] |= 1 << (id % 64);
+            }
+        }
+        let mut before = Vec::with_capacity(bits.len());
+        let mut n = 0u32;
+        for w in &bits {
+            before.push(n);
+            n += w.count_ones();
+        }
+        let mut left = vec![[0u32; 3]; n as usize];
+        for (region, (result, _, _)) in plan.regions.iter().zip(results) {
+            for &(k, t) in &result.tris {
+                let id = global(region, k);
+                let below = bits[id / 64] & ((1u64 << (id % 64)) - 1);
+                left[(before[id / 64] + below.count_ones()) as usize] = t;
+            }
+        }
+        left
     }
 
     /// Runs every region of `plan` on this state (the vertices `active` first tried,
@@ -345,16 +366,16 @@ impl State {
         active: Option<&[bool]>,
         opts: &Simplify,
         origin: DVec3,
-        done: Option<(&[RegionResult], &[RoundLog], &[bool])>,
+        done: Option<Done<'_>>,
         cache: Option<&[Cached]>,
-    ) -> (Self, Vec<(RegionResult, RoundLog, u64)>) {
+    ) -> (Self, Vec<(Arc<RegionResult>, RoundLog, u64)>) {
         let shared = Mutex::new(self);
         let mut out = Vec::new();
         par::map_into(&mut out, plan.regions.len(), |r| {
             let region = &plan.regions[r];
             let result = match done {
                 Some((results, _, redo)) if !redo[r] => {
-                    (results[r].clone(), (Vec::new(), Vec::new()), 0)
+                    (Arc::clone(&results[r]), (Vec::new(), Vec::new()), 0)
                 }
                 _ => {
                     let copy = region_copy(&shared, region, plan, frozen, active, opts, origin);
@@ -362,23 +383,24 @@ impl State {
                     let print = cache.map_or(0, |_| fingerprint(&copy, region));
                     let hit = cache.and_then(|c| {
                         let i = c.binary_search_by_key(&region.key, |e| e.0).ok()?;
-                        (c[i].1 == print).then(|| c[i].2.clone())
+                        (c[i].1 == print).then(|| Arc::clone(&c[i].2))
                     });
                     match hit {
                         Some(result) => (result, (Vec::new(), Vec::new()), print),
                         None => {
                             let (result, log) = run_region(copy, region, plan, frozen, replay);
-                            (result, log, print)
+                            (Arc::new(result), log, print)
                         }
                     }
                 }
             };
             let mut st = shared.lock().unwrap_or_else(PoisonError::into_inner);
-            st.stitch(region, &result.0);
+            st.stitch(&result.0);
             result
         });
         let mut st = shared.into_inner().unwrap_or_else(PoisonError::into_inner);
-        st.compact();
+        let count = plan.regions.iter().map(|region| region.own).sum();
+        st.slots = Self::survivors(plan, &out, count);
         (st, out)
     }
 }
@@ -399,7 +421,7 @@ pub(super) struct Rounds<'m> {
     plan: Plan,
     opts: &'m Simplify,
     /// Per first-phase region: its latest result, and the first round's collapses.
-    done: Vec<RegionResult>,
+    done: Vec<Arc<RegionResult>>,
     logs: Vec<RoundLog>,
     /// The frozen vertices of the latest round.
     frozen_then: Vec<bool>,
@@ -408,7 +430,11 @@ pub(super) struct Rounds<'m> {
 }
 
 /// A region's cube, the fingerprint of its copy and its result.
-type Cached = (u32, u64, RegionResult);
+type Cached = (u32, u64, Arc<RegionResult>);
+
+/// The first phase's results and collapses of the round before, by region, and which
+/// regions to replay.
+type Done<'a> = (&'a [Arc<RegionResult>], &'a [RoundLog], &'a [bool]);
 
 /// A 64-bit fingerprint (SipHash) of everything a region's run depends on and its result
 /// names: its copy (positions, triangles and their order, quadrics, normals, the vertices
@@ -472,7 +498,7 @@ impl<'m> Rounds<'m> {
             slot: Vec::new(),
             parent: (0..nv as u32).collect(),
             moved: vec![false; nv],
-            slots: mesh.triangles.clone(),
+            slots: Vec::new(),
             passes: 0,
             collapses: 0,
         };
@@ -511,8 +537,13 @@ impl<'m> Rounds<'m> {
                 triangles: tris,
             };
             let shifted = super::regions::plan(&lookup, Some(&grid.shifted()));
-            state.pos = lookup.vertices;
-            state.slots = lookup.triangles;
+            // The plan holds the phase's triangles: its regions' copies.
+            let Mesh {
+                vertices,
+                triangles,
+            } = lookup;
+            state.pos = vertices;
+            drop(triangles);
             let cache = Some(&self.shifted_done[..]);
             let (next, outs) =
                 state.phase(&shifted, frozen, Some(&active), opts, origin, None, cache);
@@ -751,5 +782,10 @@ fn run_region(
                 .push((k as u32, t.map(|k| region.verts[k as usize])));
         }
     }
+    // Kept to the end of the simplification, and pushed to: without the growth slack.
+    out.parents.shrink_to_fit();
+    out.moved.shrink_to_fit();
+    out.tris.shrink_to_fit();
+    c.log.shrink_to_fit();
     (out, (c.log, c.pass_ends))
 }
