@@ -301,16 +301,19 @@ struct State {
 
 impl State {
     /// A region's result written back.
-    fn stitch(&mut self, out: &RegionResult) {
+    fn stitch(&mut self, region: &Region, out: &RegionResult) {
         self.passes = self.passes.max(out.passes);
         self.collapses += out.collapses;
         for &(g, p) in &out.parents {
             self.parent[g as usize] = p;
         }
-        for &(g, pos, quad, nrm) in &out.moved {
-            let g = g as usize;
+        for &(l, pos) in &out.moved {
+            let g = region.verts[l as usize] as usize;
             self.moved[g] = true;
             self.pos[g] = pos;
+        }
+        for (&(l, _), &(quad, nrm)) in out.moved.iter().zip(&out.sums) {
+            let g = region.verts[l as usize] as usize;
             if let Some(&s) = self.slot.get(g) {
                 self.quad[s as usize] = quad;
                 self.nrm[s as usize] = nrm;
@@ -369,6 +372,8 @@ impl State {
         done: Option<Done<'_>>,
         cache: Option<&[Cached]>,
     ) -> (Self, Vec<(Arc<RegionResult>, RoundLog, u64)>) {
+        // A later phase reads its quadrics from the state (the first one has none there).
+        let keep_sums = !self.slot.is_empty();
         let shared = Mutex::new(self);
         let mut out = Vec::new();
         par::map_into(&mut out, plan.regions.len(), |r| {
@@ -388,14 +393,15 @@ impl State {
                     match hit {
                         Some(result) => (result, (Vec::new(), Vec::new()), print),
                         None => {
-                            let (result, log) = run_region(copy, region, plan, frozen, replay);
+                            let (result, log) =
+                                run_region(copy, region, plan, frozen, replay, keep_sums);
                             (Arc::new(result), log, print)
                         }
                     }
                 }
             };
             let mut st = shared.lock().unwrap_or_else(PoisonError::into_inner);
-            st.stitch(&result.0);
+            st.stitch(region, &result.0);
             result
         });
         let mut st = shared.into_inner().unwrap_or_else(PoisonError::into_inner);
@@ -631,23 +637,51 @@ impl<'m> Rounds<'m> {
     }
 
     /// Gives the vertices the first phase left (those its triangles use) a slot, with their
-    /// quadric and normal: a moved one's from its region's result, the others' initial ones
-    /// (one pass over the input's triangles, in order).
+    /// quadric and normal: a moved one's added up again along its region's collapses, the
+    /// others' initial ones (one pass over the input's triangles, in order).
     fn give_slots(&self, state: &mut State, origin: DVec3) {
         let (slot, used) = numbered_used(state.pos.len(), &state.slots);
         let n = used.len() as u32;
         drop(used);
         let mut quad = vec![Quadric::default(); n as usize];
         let mut nrm = vec![Vec3::ZERO; n as usize];
-        for result in &self.done {
-            for &(g, _, q, m) in &result.moved {
-                let s = slot[g as usize];
+        // A region's copy read the input's positions (its own vertices, which no other
+        // region moves, and vertices no region moves) and summed its initial quadrics from
+        // its triangles; its collapses then added `u`'s sums to `w`'s, in order.
+        let sums = Mutex::new((&mut quad, &mut nrm));
+        let mut unit: Vec<()> = Vec::new();
+        par::map_into(&mut unit, self.plan.regions.len(), |r| {
+            let (region, result) = (&self.plan.regions[r], &self.done[r]);
+            if result.moved.is_empty() {
+                return;
+            }
+            let copy = Mesh {
+                vertices: region
+                    .verts
+                    .iter()
+                    .map(|&g| self.mesh.vertices[g as usize])
+                    .collect(),
+                triangles: region.tris.clone(),
+            };
+            let (mut q, mut m) = super::quadric::initial_quadrics_at(&copy, origin);
+            let log = result.applied.as_ref().unwrap_or(&self.logs[r].0);
+            for &(u, w) in log {
+                let (u, w) = (u as usize, w as usize);
+                let qu = q[u];
+                q[w].add(&qu);
+                let mu = m[u];
+                m[w] += mu;
+            }
+            let mut guard = sums.lock().unwrap_or_else(PoisonError::into_inner);
+            let (quad, nrm) = &mut *guard;
+            for &(l, _) in &result.moved {
+                let s = slot[region.verts[l as usize] as usize];
                 if s != u32::MAX {
-                    quad[s as usize] = q;
-                    nrm[s as usize] = m;
+                    quad[s as usize] = q[l as usize];
+                    nrm[s as usize] = m[l as usize];
                 }
             }
-        }
+        });
         // The unmoved ones: two halves of the slots at once, each summing its vertices'
         // triangles in order (so the sums do not depend on the threads).
         let (moved, half) = (&state.moved, n / 2);
@@ -737,25 +771,37 @@ fn region_copy(
     c
 }
 
-/// What a region did, in global indices: its movable vertices that collapsed (into
-/// which) and that moved (where, with their quadric and normal), its own triangles that
-/// are left (their places among its own and their corners), and its passes and collapses.
+/// What a region did: its movable vertices that collapsed (into which, global indices)
+/// and that moved (their local numbers and where), its own triangles that are left (their
+/// places among its own and their corners, global indices), and its passes and collapses.
+///
+/// A later phase's result keeps the moved vertices' quadrics and normals (`sums`, in the
+/// order of `moved`): its copy read them from the shared state. A first phase's does not
+/// (88 + 12 bytes a moved vertex, kept for the whole simplification): they are the sums of
+/// its copy's initial ones along its collapses, which [`Rounds::give_slots`] adds up again
+/// when it needs them; a replayed region keeps the collapses it made (`applied`), a run one
+/// made those of its log.
 #[derive(Clone, Default)]
 struct RegionResult {
     parents: Vec<(u32, u32)>,
-    moved: Vec<(u32, Vec3, Quadric, Vec3)>,
+    moved: Vec<(u32, Vec3)>,
+    sums: Vec<(Quadric, Vec3)>,
+    applied: Option<Vec<(u32, u32)>>,
     tris: Vec<(u32, [u32; 3])>,
     passes: usize,
     collapses: usize,
 }
 
-/// Runs a region's copy, or replays `replay` on it; returns its result and its collapses.
+/// Runs a region's copy, or replays `replay` on it; returns its result (with `sums` when
+/// `keep_sums`) and its collapses (none for a replay: its result keeps them when it has no
+/// `sums`).
 fn run_region(
     mut c: Collapser,
     region: &Region,
     plan: &Plan,
     frozen: &[bool],
     replay: Option<&RoundLog>,
+    keep_sums: bool,
 ) -> (RegionResult, RoundLog) {
     match replay {
         None => c.run(),
@@ -773,7 +819,10 @@ fn run_region(
         if c.parent[l] as usize != l {
             out.parents.push((g, region.verts[c.parent[l] as usize]));
         } else if c.moved[l] {
-            out.moved.push((g, c.pos[l], c.quad[l], c.nrm[l]));
+            out.moved.push((l as u32, c.pos[l]));
+            if keep_sums {
+                out.sums.push((c.quad[l], c.nrm[l]));
+            }
         }
     }
     for (t, &id) in c.tris.iter().zip(&c.ids) {
@@ -787,5 +836,9 @@ fn run_region(
     out.moved.shrink_to_fit();
     out.tris.shrink_to_fit();
     c.log.shrink_to_fit();
+    if replay.is_some() && !keep_sums {
+        out.applied = Some(c.log);
+        return (out, (Vec::new(), Vec::new()));
+    }
     (out, (c.log, c.pass_ends))
 }
