@@ -372,8 +372,6 @@ impl State {
         done: Option<Done<'_>>,
         cache: Option<&[Cached]>,
     ) -> (Self, Vec<(Arc<RegionResult>, RoundLog, u64)>) {
-        // A later phase reads its quadrics from the state (the first one has none there).
-        let keep_sums = !self.slot.is_empty();
         let shared = Mutex::new(self);
         let mut out = Vec::new();
         par::map_into(&mut out, plan.regions.len(), |r| {
@@ -393,8 +391,7 @@ impl State {
                     match hit {
                         Some(result) => (result, (Vec::new(), Vec::new()), print),
                         None => {
-                            let (result, log) =
-                                run_region(copy, region, plan, frozen, replay, keep_sums);
+                            let (result, log) = run_region(copy, region, plan, frozen, replay);
                             (Arc::new(result), log, print)
                         }
                     }
@@ -537,6 +534,11 @@ impl<'m> Rounds<'m> {
         // The second phase: the shifted cubes, from the vertices the first could not move.
         if let Some(grid) = &self.grid {
             self.give_slots(&mut state, origin);
+            for result in &mut self.done {
+                if let Some(result) = Arc::get_mut(result) {
+                    result.sums = Vec::new();
+                }
+            }
             let tris = std::mem::take(&mut state.slots);
             let lookup = Mesh {
                 vertices: std::mem::take(&mut state.pos),
@@ -637,8 +639,9 @@ impl<'m> Rounds<'m> {
     }
 
     /// Gives the vertices the first phase left (those its triangles use) a slot, with their
-    /// quadric and normal: a moved one's added up again along its region's collapses, the
-    /// others' initial ones (one pass over the input's triangles, in order).
+    /// quadric and normal: a moved one's from its region's result, or added up again along
+    /// its collapses when the result was reused without them, the others' initial ones (one
+    /// pass over the input's triangles, in order).
     fn give_slots(&self, state: &mut State, origin: DVec3) {
         let (slot, used) = numbered_used(state.pos.len(), &state.slots);
         let n = used.len() as u32;
@@ -652,33 +655,57 @@ impl<'m> Rounds<'m> {
         let mut unit: Vec<()> = Vec::new();
         par::map_into(&mut unit, self.plan.regions.len(), |r| {
             let (region, result) = (&self.plan.regions[r], &self.done[r]);
-            if result.moved.is_empty() {
-                return;
-            }
-            let copy = Mesh {
-                vertices: region
-                    .verts
+            let slot_of = |l: u32| slot[region.verts[l as usize] as usize];
+            let added_up = || {
+                let copy = Mesh {
+                    vertices: region
+                        .verts
+                        .iter()
+                        .map(|&g| self.mesh.vertices[g as usize])
+                        .collect(),
+                    triangles: region.tris.clone(),
+                };
+                let (mut q, mut m) = super::quadric::initial_quadrics_at(&copy, origin);
+                let log = result.applied.as_ref().unwrap_or(&self.logs[r].0);
+                for &(u, w) in log {
+                    let (u, w) = (u as usize, w as usize);
+                    let qu = q[u];
+                    q[w].add(&qu);
+                    let mu = m[u];
+                    m[w] += mu;
+                }
+                result
+                    .moved
                     .iter()
-                    .map(|&g| self.mesh.vertices[g as usize])
-                    .collect(),
-                triangles: region.tris.clone(),
+                    .map(|&(l, _)| (q[l as usize], m[l as usize]))
+                    .collect::<Vec<_>>()
             };
-            let (mut q, mut m) = super::quadric::initial_quadrics_at(&copy, origin);
-            let log = result.applied.as_ref().unwrap_or(&self.logs[r].0);
-            for &(u, w) in log {
-                let (u, w) = (u as usize, w as usize);
-                let qu = q[u];
-                q[w].add(&qu);
-                let mu = m[u];
-                m[w] += mu;
-            }
+            let fresh;
+            let sums_of = if result.sums.len() == result.moved.len() {
+                // What a reused result relies on: adding up again gives the same bits.
+                #[cfg(debug_assertions)]
+                for (a, b) in added_up().iter().zip(&result.sums) {
+                    let bits = |(q, m): &(Quadric, Vec3)| {
+                        (
+                            q.q.map(f64::to_bits),
+                            q.w.to_bits(),
+                            m.to_array().map(f32::to_bits),
+                        )
+                    };
+                    debug_assert!(bits(a) == bits(b), "region {r}: sums added up differ");
+                }
+                &result.sums
+            } else {
+                fresh = added_up();
+                &fresh
+            };
             let mut guard = sums.lock().unwrap_or_else(PoisonError::into_inner);
             let (quad, nrm) = &mut *guard;
-            for &(l, _) in &result.moved {
-                let s = slot[region.verts[l as usize] as usize];
+            for (&(l, _), &(q, m)) in result.moved.iter().zip(sums_of) {
+                let s = slot_of(l);
                 if s != u32::MAX {
-                    quad[s as usize] = q[l as usize];
-                    nrm[s as usize] = m[l as usize];
+                    quad[s as usize] = q;
+                    nrm[s as usize] = m;
                 }
             }
         });
@@ -775,11 +802,11 @@ fn region_copy(
 /// and that moved (their local numbers and where), its own triangles that are left (their
 /// places among its own and their corners, global indices), and its passes and collapses.
 ///
-/// A later phase's result keeps the moved vertices' quadrics and normals (`sums`, in the
-/// order of `moved`): its copy read them from the shared state. A first phase's does not
-/// (88 + 12 bytes a moved vertex, kept for the whole simplification): they are the sums of
-/// its copy's initial ones along its collapses, which [`Rounds::give_slots`] adds up again
-/// when it needs them; a replayed region keeps the collapses it made (`applied`), a run one
+/// `sums`: the moved vertices' quadrics and normals, in the order of `moved`. A first
+/// phase's result, kept for the later rounds, holds them only until the slot pass has
+/// taken them (88 + 12 bytes a moved vertex): they are the sums of its copy's initial ones
+/// along its collapses, which [`Rounds::give_slots`] adds up again when a later round
+/// reuses the result. A replayed region keeps the collapses it made (`applied`); a run one
 /// made those of its log.
 #[derive(Clone, Default)]
 struct RegionResult {
@@ -792,16 +819,14 @@ struct RegionResult {
     collapses: usize,
 }
 
-/// Runs a region's copy, or replays `replay` on it; returns its result (with `sums` when
-/// `keep_sums`) and its collapses (none for a replay: its result keeps them when it has no
-/// `sums`).
+/// Runs a region's copy, or replays `replay` on it; returns its result and its collapses
+/// (none for a replay: its result keeps them, in `applied`).
 fn run_region(
     mut c: Collapser,
     region: &Region,
     plan: &Plan,
     frozen: &[bool],
     replay: Option<&RoundLog>,
-    keep_sums: bool,
 ) -> (RegionResult, RoundLog) {
     match replay {
         None => c.run(),
@@ -820,9 +845,7 @@ fn run_region(
             out.parents.push((g, region.verts[c.parent[l] as usize]));
         } else if c.moved[l] {
             out.moved.push((l as u32, c.pos[l]));
-            if keep_sums {
-                out.sums.push((c.quad[l], c.nrm[l]));
-            }
+            out.sums.push((c.quad[l], c.nrm[l]));
         }
     }
     for (t, &id) in c.tris.iter().zip(&c.ids) {
@@ -836,7 +859,7 @@ fn run_region(
     out.moved.shrink_to_fit();
     out.tris.shrink_to_fit();
     c.log.shrink_to_fit();
-    if replay.is_some() && !keep_sums {
+    if replay.is_some() {
         out.applied = Some(c.log);
         return (out, (Vec::new(), Vec::new()));
     }
