@@ -106,6 +106,14 @@ pub(crate) fn map_into<T: Send>(dst: &mut Vec<T>, n: usize, f: impl Fn(usize) ->
     }
 }
 
+/// `f(i)` for every `i` in `0..n`, in no particular order.
+pub(crate) fn for_each(n: usize, f: impl Fn(usize) + Sync) {
+    #[cfg(feature = "parallel")]
+    (0..n).into_par_iter().for_each(&f);
+    #[cfg(not(feature = "parallel"))]
+    (0..n).for_each(f);
+}
+
 /// `[f(&items[0]), f(&items[1]), …]`.
 pub(crate) fn map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync) -> Vec<U> {
     let mut out = Vec::new();

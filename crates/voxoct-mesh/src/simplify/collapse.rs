@@ -275,10 +275,7 @@ impl Collapser {
             }
         }
         self.pos[w] = c.p;
-        let qu = self.quad[u];
-        self.quad[w].add(&qu);
-        let nu = self.nrm[u];
-        self.nrm[w] += nu;
+        super::quadric::merge(&mut self.quad, &mut self.nrm, u, w);
         self.locked[u] = true;
         self.locked[w] = true;
         self.next_active[w] = true;

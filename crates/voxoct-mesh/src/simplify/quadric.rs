@@ -98,6 +98,16 @@ impl Quadric {
     }
 }
 
+/// What a collapse of `u` into `w` does to their quadrics and normals: `u`'s added to
+/// `w`'s. The one place it is done, for the collapses and for adding a region's sums up
+/// again from its log (which must give the same bits).
+pub(super) fn merge(quad: &mut [Quadric], nrm: &mut [Vec3], u: usize, w: usize) {
+    let qu = quad[u];
+    quad[w].add(&qu);
+    let nu = nrm[u];
+    nrm[w] += nu;
+}
+
 /// Ridge of [`Quadric::minimum`] relative to the quadric's trace.
 pub(super) const RIDGE: f64 = 1e-3;
 

@@ -21,6 +21,7 @@
 //! from the vertices that were not movable (their edges were never tried), and what those
 //! leave (where the borders of both cross) by one run over the whole mesh.
 
+use std::borrow::Cow;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use voxoct_core::glam::{DVec3, UVec3, Vec3};
@@ -531,14 +532,18 @@ impl<'m> Rounds<'m> {
         }
         self.frozen_then.copy_from_slice(frozen);
         let mut active: Vec<bool> = plan.movable.iter().map(|m| !m).collect();
+        if self.grid.is_some() {
+            self.give_slots(&mut state, origin);
+        }
+        // Kept for the later rounds without their sums (nothing else reads them; the
+        // results are not shared any more: the phase's were moved here).
+        for result in &mut self.done {
+            if let Some(result) = Arc::get_mut(result) {
+                result.sums = Vec::new();
+            }
+        }
         // The second phase: the shifted cubes, from the vertices the first could not move.
         if let Some(grid) = &self.grid {
-            self.give_slots(&mut state, origin);
-            for result in &mut self.done {
-                if let Some(result) = Arc::get_mut(result) {
-                    result.sums = Vec::new();
-                }
-            }
             let tris = std::mem::take(&mut state.slots);
             let lookup = Mesh {
                 vertices: std::mem::take(&mut state.pos),
@@ -652,27 +657,14 @@ impl<'m> Rounds<'m> {
         // region moves, and vertices no region moves) and summed its initial quadrics from
         // its triangles; its collapses then added `u`'s sums to `w`'s, in order.
         let sums = Mutex::new((&mut quad, &mut nrm));
-        let mut unit: Vec<()> = Vec::new();
-        par::map_into(&mut unit, self.plan.regions.len(), |r| {
+        par::for_each(self.plan.regions.len(), |r| {
             let (region, result) = (&self.plan.regions[r], &self.done[r]);
-            let slot_of = |l: u32| slot[region.verts[l as usize] as usize];
             let added_up = || {
-                let copy = Mesh {
-                    vertices: region
-                        .verts
-                        .iter()
-                        .map(|&g| self.mesh.vertices[g as usize])
-                        .collect(),
-                    triangles: region.tris.clone(),
-                };
+                let copy = local_mesh(region, &self.mesh.vertices);
                 let (mut q, mut m) = super::quadric::initial_quadrics_at(&copy, origin);
                 let log = result.applied.as_ref().unwrap_or(&self.logs[r].0);
                 for &(u, w) in log {
-                    let (u, w) = (u as usize, w as usize);
-                    let qu = q[u];
-                    q[w].add(&qu);
-                    let mu = m[u];
-                    m[w] += mu;
+                    super::quadric::merge(&mut q, &mut m, u as usize, w as usize);
                 }
                 result
                     .moved
@@ -680,8 +672,7 @@ impl<'m> Rounds<'m> {
                     .map(|&(l, _)| (q[l as usize], m[l as usize]))
                     .collect::<Vec<_>>()
             };
-            let fresh;
-            let sums_of = if result.sums.len() == result.moved.len() {
+            let of_moved: Cow<'_, [(Quadric, Vec3)]> = if result.sums.len() == result.moved.len() {
                 // What a reused result relies on: adding up again gives the same bits.
                 #[cfg(debug_assertions)]
                 for (a, b) in added_up().iter().zip(&result.sums) {
@@ -694,15 +685,14 @@ impl<'m> Rounds<'m> {
                     };
                     debug_assert!(bits(a) == bits(b), "region {r}: sums added up differ");
                 }
-                &result.sums
+                Cow::Borrowed(&result.sums)
             } else {
-                fresh = added_up();
-                &fresh
+                Cow::Owned(added_up())
             };
             let mut guard = sums.lock().unwrap_or_else(PoisonError::into_inner);
             let (quad, nrm) = &mut *guard;
-            for (&(l, _), &(q, m)) in result.moved.iter().zip(sums_of) {
-                let s = slot_of(l);
+            for (&(l, _), &(q, m)) in result.moved.iter().zip(of_moved.iter()) {
+                let s = slot[region.verts[l as usize] as usize];
                 if s != u32::MAX {
                     quad[s as usize] = q;
                     nrm[s as usize] = m;
@@ -749,6 +739,14 @@ fn numbered_used(nv: usize, tris: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
     (number, used)
 }
 
+/// The region's vertices at `pos` (global indices) and its triangles, in local numbers.
+fn local_mesh(region: &Region, pos: &[Vec3]) -> Mesh {
+    Mesh {
+        vertices: region.verts.iter().map(|&g| pos[g as usize]).collect(),
+        triangles: region.tris.clone(),
+    }
+}
+
 /// A region's copy of the mesh, ready to run: its vertices (positions, quadrics,
 /// normals), its triangles, and which of its vertices may move and are tried first. The
 /// state is locked only to read it; the quadrics are computed from the copy when the state
@@ -765,10 +763,7 @@ fn region_copy(
     let verts = &region.verts;
     let (local, stored) = {
         let st = shared.lock().unwrap_or_else(PoisonError::into_inner);
-        let local = Mesh {
-            vertices: verts.iter().map(|&g| st.pos[g as usize]).collect(),
-            triangles: region.tris.clone(),
-        };
+        let local = local_mesh(region, &st.pos);
         let of = |g: u32| st.slot[g as usize] as usize;
         let stored = (!st.slot.is_empty()).then(|| {
             (
@@ -803,12 +798,12 @@ fn region_copy(
 /// places among its own and their corners, global indices), and its passes and collapses.
 ///
 /// `sums`: the moved vertices' quadrics and normals, in the order of `moved`. A first
-/// phase's result, kept for the later rounds, holds them only until the slot pass has
-/// taken them (88 + 12 bytes a moved vertex): they are the sums of its copy's initial ones
-/// along its collapses, which [`Rounds::give_slots`] adds up again when a later round
+/// phase's result, kept for the later rounds, holds them only until its phase's slot pass
+/// has taken them (88 + 12 bytes a moved vertex): they are the sums of its copy's initial
+/// ones along its collapses, which [`Rounds::give_slots`] adds up again when a later round
 /// reuses the result. A replayed region keeps the collapses it made (`applied`); a run one
 /// made those of its log.
-#[derive(Clone, Default)]
+#[derive(Default)]
 struct RegionResult {
     parents: Vec<(u32, u32)>,
     moved: Vec<(u32, Vec3)>,
@@ -857,6 +852,7 @@ fn run_region(
     // Kept to the end of the simplification, and pushed to: without the growth slack.
     out.parents.shrink_to_fit();
     out.moved.shrink_to_fit();
+    out.sums.shrink_to_fit();
     out.tris.shrink_to_fit();
     c.log.shrink_to_fit();
     if replay.is_some() {
