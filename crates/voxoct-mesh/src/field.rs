@@ -85,8 +85,9 @@ fn check_arguments(grid: &GridSpec, opts: &MeshOptions) -> Result<(), MeshError>
 /// Validates the grid and the cells; returns the marked cells as `(coord, value)` with the
 /// value in cells (mean signed distance / cell edge; `-inf` kept, a solid cell without an
 /// observed surface such as the closure adds, `closure::CLOSED_SDF`; 0 when NaN or `+inf`),
-/// and the inside rule. Owned cells are freed as soon as they are converted, before the
-/// fill (they and their conversion are the two largest arrays of a solid's meshing).
+/// and the inside rule. Owned cells are given back part by part as they are converted,
+/// before the fill (they and their conversion are the two largest arrays of a solid's
+/// meshing, and are never both whole).
 pub(crate) fn prepare(
     cells: Cow<'_, [Cell]>,
     grid: &GridSpec,
@@ -94,29 +95,54 @@ pub(crate) fn prepare(
     out: &mut Vec<(UVec3, f32)>,
 ) -> Result<Inside, MeshError> {
     check_arguments(grid, opts)?;
+    if let Some((index, c)) = cells
+        .iter()
+        .enumerate()
+        .find(|(_, c)| c.coord.max_element() >= grid.resolution)
+    {
+        return Err(MeshError::CellOutsideGrid {
+            index,
+            coord: c.coord,
+            resolution: grid.resolution,
+        });
+    }
     let min_hits = opts.min_hits.max(1);
     let inv = 1.0 / grid.cell;
+    let entry = |c: &Cell| {
+        let v = c.mean_sdf() * inv;
+        let v = if v.is_finite() || v == f32::NEG_INFINITY {
+            v
+        } else {
+            0.0
+        };
+        (c.coord, v)
+    };
     out.clear();
-    out.reserve(cells.len());
-    for (index, c) in cells.iter().enumerate() {
-        if c.coord.max_element() >= grid.resolution {
-            return Err(MeshError::CellOutsideGrid {
-                index,
-                coord: c.coord,
-                resolution: grid.resolution,
-            });
+    out.reserve_exact(cells.iter().filter(|c| c.hits >= min_hits).count());
+    match cells {
+        Cow::Borrowed(cells) => {
+            out.extend(cells.iter().filter(|c| c.hits >= min_hits).map(entry));
         }
-        if c.hits >= min_hits {
-            let v = c.mean_sdf() * inv;
-            let v = if v.is_finite() || v == f32::NEG_INFINITY {
-                v
-            } else {
-                0.0
-            };
-            out.push((c.coord, v));
+        Cow::Owned(mut cells) => {
+            // From the back, an eighth of what is left at a time, each part's memory given
+            // back before the next is converted: the cells (20 bytes) and their conversion
+            // (16 bytes) are never both whole (a solid's interior, at fine leaves the
+            // largest arrays of the meshing). Reversed at the end: the order is kept.
+            while !cells.is_empty() {
+                let from = cells.len() - cells.len().div_ceil(8);
+                out.extend(
+                    cells[from..]
+                        .iter()
+                        .rev()
+                        .filter(|c| c.hits >= min_hits)
+                        .map(entry),
+                );
+                cells.truncate(from);
+                cells.shrink_to_fit();
+            }
+            out.reverse();
         }
     }
-    drop(cells);
     let flood = opts.solid || opts.placement == Placement::SignedDistance;
     let floor_layer = match opts.floor {
         Floor::None => None,

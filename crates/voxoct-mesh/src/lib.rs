@@ -298,7 +298,7 @@ pub fn mesh_cells_simplified(
     times.march = t.elapsed();
     let marched_triangles = mesh.triangles.len();
     let (mesh, certified, stats) = by_pieces(
-        &mesh,
+        mesh,
         opts.smoothing.as_ref(),
         simplify,
         PIECE_GROUP_TRIANGLES,
@@ -313,10 +313,38 @@ pub fn mesh_cells_simplified(
     })
 }
 
+/// Smooths and simplifies one group of pieces of the pieces path in place, adding the
+/// steps' times; returns what simplifying did. Only what is kept stays resident.
+fn process_group(
+    part: &mut Mesh,
+    smoothing: Option<&Taubin>,
+    simplify: Option<&Simplify>,
+    times: &mut StepTimes,
+) -> Option<SimplifyStats> {
+    let t0 = Instant::now();
+    if let Some(t) = smoothing {
+        smooth::taubin(part, t);
+    }
+    let t1 = Instant::now();
+    times.smooth += t1 - t0;
+    let stats = simplify.map(|s| simplify::simplify(part, s));
+    times.simplify += t1.elapsed();
+    // The buffers were sized for the input.
+    part.vertices.shrink_to_fit();
+    part.triangles.shrink_to_fit();
+    stats
+}
+
 /// The pieces path of [`mesh_cells_simplified`] on the marched mesh `raw`, in groups of
 /// whole pieces of about `group_triangles`.
+///
+/// The groups are copied out of `raw`, which is kept for a group that must be processed
+/// again. When all the pieces make one group (a single large piece, the usual object),
+/// nothing can be processed again: `raw` itself becomes the group, as the copy would be
+/// (its vertices numbered by first use, the unused ones dropped), and is processed in
+/// place, so the marched mesh is never held twice.
 fn by_pieces(
-    raw: &Mesh,
+    mut raw: Mesh,
     smoothing: Option<&Taubin>,
     simplify: Option<&Simplify>,
     group_triangles: usize,
@@ -339,6 +367,17 @@ fn by_pieces(
         filled += n;
     }
     drop(size);
+    if groups == 1 {
+        drop((roots, group));
+        raw.number_by_first_use();
+        let stats = process_group(&mut raw, smoothing, simplify, times);
+        let t0 = Instant::now();
+        let bad = raw.self_intersecting_triangles();
+        times.smooth += t0.elapsed();
+        // As the joined result of one group: unproven when it still cuts through itself
+        // (cannot happen for a marched mesh: see below).
+        return (raw, bad.is_empty(), stats);
+    }
     let mut tri_group: Vec<u32> = roots.iter().map(|&r| group[r as usize]).collect();
     drop((roots, group));
     let mut done: Vec<Option<Mesh>> = (0..groups).map(|_| None).collect();
@@ -378,17 +417,7 @@ fn by_pieces(
             for &k in &used {
                 map[k as usize] = u32::MAX;
             }
-            let t0 = Instant::now();
-            if let Some(t) = smoothing {
-                smooth::taubin(&mut part, t);
-            }
-            let t1 = Instant::now();
-            times.smooth += t1 - t0;
-            group_stats[g] = simplify.map(|s| simplify::simplify(&mut part, s));
-            times.simplify += t1.elapsed();
-            // Only what is kept stays resident (the buffers were sized for the input).
-            part.vertices.shrink_to_fit();
-            part.triangles.shrink_to_fit();
+            group_stats[g] = process_group(&mut part, smoothing, simplify, times);
             *slot = Some(part);
         }
         // Joined in group order, with each triangle's group.
@@ -520,7 +549,7 @@ mod tests {
             prop_assume!(!raw.triangles.is_empty());
             let s = Simplify::for_leaf(grid.cell);
             let simplify = simplified.then_some(&s);
-            let (mesh, certified, stats) = by_pieces(&raw, opts.smoothing.as_ref(), simplify, group, &mut StepTimes::default());
+            let (mesh, certified, stats) = by_pieces(raw.clone(), opts.smoothing.as_ref(), simplify, group, &mut StepTimes::default());
             prop_assert!(certified);
             // The groups' figures add up to the whole: every marched triangle went in, every
             // output triangle came out.

@@ -465,6 +465,30 @@ impl Mesh {
         self.vertices = kept;
     }
 
+    /// Numbers the vertices in the order the triangles first use them and drops the unused
+    /// ones (the triangles keep their order and orientation).
+    pub(crate) fn number_by_first_use(&mut self) {
+        let mut new_of = vec![u32::MAX; self.vertices.len()];
+        let mut n = 0u32;
+        for t in &mut self.triangles {
+            for k in t.iter_mut() {
+                let m = &mut new_of[*k as usize];
+                if *m == u32::MAX {
+                    *m = n;
+                    n += 1;
+                }
+                *k = *m;
+            }
+        }
+        let mut kept = vec![Vec3::ZERO; n as usize];
+        for (p, &m) in self.vertices.iter().zip(&new_of) {
+            if m != u32::MAX {
+                kept[m as usize] = *p;
+            }
+        }
+        self.vertices = kept;
+    }
+
     /// The triangles as a soup of [`voxoct_core::Triangle`] (e.g. for an STL writer or an
     /// octree).
     #[must_use]
@@ -514,4 +538,21 @@ fn count_cycles(fan: &[(u32, u32)]) -> usize {
         }
     }
     cycles
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbering_by_first_use_keeps_the_triangles_and_drops_unused_vertices() {
+        let p = |i: u32| Vec3::splat(i as f32);
+        let mut m = Mesh {
+            vertices: (0..6).map(p).collect(),
+            triangles: vec![[4, 2, 5], [2, 4, 0], [5, 0, 4]],
+        };
+        m.number_by_first_use();
+        assert_eq!(m.triangles, vec![[0, 1, 2], [1, 0, 3], [2, 3, 0]]);
+        assert_eq!(m.vertices, vec![p(4), p(2), p(5), p(0)]);
+    }
 }

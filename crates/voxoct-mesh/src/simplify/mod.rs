@@ -73,7 +73,9 @@
 //! the input's) get one in the shared state for the later phases. The working copy's
 //! triangles are the regions' copies: a phase's surviving triangles are put together from
 //! its regions' results at its end, and a result kept for a later round is shared, not
-//! copied, and holds no growth slack.
+//! copied, and holds no growth slack. The first phase's plan, kept for the later rounds,
+//! holds no region's triangles: a region's are numbered again from the input's when it
+//! is copied.
 
 use crate::mesh::{Mesh, TopologyError};
 

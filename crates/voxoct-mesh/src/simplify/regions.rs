@@ -44,9 +44,13 @@ const UNUSED: u32 = u32::MAX - 1;
 /// One region's copy of the mesh.
 pub(super) struct Region {
     /// Its vertices (global indices): local vertex `i` is `verts[i]`. Those whose every
-    /// triangle is its own come first, in increasing order, then the others, also so.
+    /// triangle is its own come first (`inner` of them), in increasing order, then the
+    /// others, also so.
     verts: Vec<u32>,
-    /// Its triangles in local indices: its own first (in mesh order), then the halo.
+    inner: usize,
+    /// Its triangles in local indices: its own first (in mesh order), then the halo. Empty
+    /// when the plan keeps none: they are numbered again from the triangles the plan was
+    /// made of when needed ([`Region::local_triangles`]).
     tris: Vec<[u32; 3]>,
     /// The global index of each of `tris`.
     ids: Vec<u32>,
@@ -64,9 +68,30 @@ pub(super) struct Plan {
     pub(super) regions: Vec<Region>,
 }
 
+impl Region {
+    /// Its triangles in local numbers: those kept, or those of `source` (the triangles the
+    /// plan was made of) that it names, numbered again.
+    fn local_triangles(&self, source: &[[u32; 3]]) -> Vec<[u32; 3]> {
+        if !self.tris.is_empty() {
+            return self.tris.clone();
+        }
+        let (inner, others) = self.verts.split_at(self.inner);
+        let local = |g: u32| match inner.binary_search(&g) {
+            Ok(i) => i as u32,
+            Err(_) => (inner.len() + others.binary_search(&g).unwrap_or(0)) as u32,
+        };
+        self.ids
+            .iter()
+            .map(|&t| source[t as usize].map(local))
+            .collect()
+    }
+}
+
 /// Splits `mesh` (indices in range) into the regions of `grid`'s cubes, each triangle in
-/// the cube of its centroid (one region without a grid).
-pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>) -> Plan {
+/// the cube of its centroid (one region without a grid). With `keep_tris`, each region
+/// keeps its copy of its triangles; without, they are numbered again from `mesh`'s when
+/// needed (12 bytes a triangle less for as long as the plan is kept).
+pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>, keep_tris: bool) -> Plan {
     let nv = mesh.vertices.len();
     let (region_of, keys) = assign(mesh, grid);
     let count = keys.len();
@@ -145,14 +170,18 @@ pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>) -> Plan {
                 (inner.len() + others.binary_search(&k).unwrap_or(0)) as u32
             }
         };
-        let tris = ids
-            .iter()
-            .map(|&t| mesh.triangles[t as usize].map(local))
-            .collect();
+        let tris = if keep_tris {
+            ids.iter()
+                .map(|&t| mesh.triangles[t as usize].map(local))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let mut verts = inner.to_vec();
         verts.extend_from_slice(&others);
         Region {
             tris,
+            inner: inner.len(),
             ids,
             own: own.len(),
             verts,
@@ -366,6 +395,7 @@ impl State {
     fn phase(
         self,
         plan: &Plan,
+        source: &[[u32; 3]],
         frozen: &[bool],
         active: Option<&[bool]>,
         opts: &Simplify,
@@ -382,7 +412,15 @@ impl State {
                     (Arc::clone(&results[r]), (Vec::new(), Vec::new()), 0)
                 }
                 _ => {
-                    let copy = region_copy(&shared, region, plan, frozen, active, opts, origin);
+                    let copy = region_copy(
+                        &shared,
+                        (region, source),
+                        plan,
+                        frozen,
+                        active,
+                        opts,
+                        origin,
+                    );
                     let replay = done.map(|(_, logs, _)| &logs[r]);
                     let print = cache.map_or(0, |_| fingerprint(&copy, region));
                     let hit = cache.and_then(|c| {
@@ -476,7 +514,9 @@ impl<'m> Rounds<'m> {
     /// other phase).
     pub(super) fn new(mesh: &'m Mesh, opts: &'m Simplify, per_region: usize) -> Self {
         let grid = Grid::new(mesh, per_region);
-        let plan = plan(mesh, grid.as_ref());
+        // The first phase's plan is kept for the later rounds: without its triangles,
+        // which `mesh`'s give again.
+        let plan = plan(mesh, grid.as_ref(), false);
         Self {
             mesh,
             plan,
@@ -520,7 +560,16 @@ impl<'m> Rounds<'m> {
             })
             .collect();
         let done = (!self.done.is_empty()).then_some((&self.done[..], &self.logs[..], &redo[..]));
-        let (mut state, outs) = state.phase(plan, frozen, None, opts, origin, done, None);
+        let (mut state, outs) = state.phase(
+            plan,
+            &mesh.triangles,
+            frozen,
+            None,
+            opts,
+            origin,
+            done,
+            None,
+        );
         let first = self.done.is_empty();
         for (r, (result, log, _)) in outs.into_iter().enumerate() {
             if first {
@@ -549,7 +598,7 @@ impl<'m> Rounds<'m> {
                 vertices: std::mem::take(&mut state.pos),
                 triangles: tris,
             };
-            let shifted = super::regions::plan(&lookup, Some(&grid.shifted()));
+            let shifted = super::regions::plan(&lookup, Some(&grid.shifted()), true);
             // The plan holds the phase's triangles: its regions' copies.
             let Mesh {
                 vertices,
@@ -558,8 +607,16 @@ impl<'m> Rounds<'m> {
             state.pos = vertices;
             drop(triangles);
             let cache = Some(&self.shifted_done[..]);
-            let (next, outs) =
-                state.phase(&shifted, frozen, Some(&active), opts, origin, None, cache);
+            let (next, outs) = state.phase(
+                &shifted,
+                &[],
+                frozen,
+                Some(&active),
+                opts,
+                origin,
+                None,
+                cache,
+            );
             state = next;
             // Kept for the next round, whose regions of the same cubes and copies take them.
             self.shifted_done = shifted
@@ -660,7 +717,7 @@ impl<'m> Rounds<'m> {
         par::for_each(self.plan.regions.len(), |r| {
             let (region, result) = (&self.plan.regions[r], &self.done[r]);
             let added_up = || {
-                let copy = local_mesh(region, &self.mesh.vertices);
+                let copy = local_mesh(region, self.mesh);
                 let (mut q, mut m) = super::quadric::initial_quadrics_at(&copy, origin);
                 let log = result.applied.as_ref().unwrap_or(&self.logs[r].0);
                 for &(u, w) in log {
@@ -739,11 +796,16 @@ fn numbered_used(nv: usize, tris: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
     (number, used)
 }
 
-/// The region's vertices at `pos` (global indices) and its triangles, in local numbers.
-fn local_mesh(region: &Region, pos: &[Vec3]) -> Mesh {
+/// The region's vertices at `at`'s positions and its triangles (`at`'s when the plan was
+/// made of them and keeps none), in local numbers.
+fn local_mesh(region: &Region, at: &Mesh) -> Mesh {
     Mesh {
-        vertices: region.verts.iter().map(|&g| pos[g as usize]).collect(),
-        triangles: region.tris.clone(),
+        vertices: region
+            .verts
+            .iter()
+            .map(|&g| at.vertices[g as usize])
+            .collect(),
+        triangles: region.local_triangles(&at.triangles),
     }
 }
 
@@ -753,7 +815,7 @@ fn local_mesh(region: &Region, pos: &[Vec3]) -> Mesh {
 /// holds none (the first phase).
 fn region_copy(
     shared: &Mutex<State>,
-    region: &Region,
+    (region, source): (&Region, &[[u32; 3]]),
     plan: &Plan,
     frozen: &[bool],
     active: Option<&[bool]>,
@@ -761,9 +823,14 @@ fn region_copy(
     origin: DVec3,
 ) -> Collapser {
     let verts = &region.verts;
+    // Numbered again (when the plan keeps no copy) without the lock.
+    let triangles = region.local_triangles(source);
     let (local, stored) = {
         let st = shared.lock().unwrap_or_else(PoisonError::into_inner);
-        let local = local_mesh(region, &st.pos);
+        let local = Mesh {
+            vertices: verts.iter().map(|&g| st.pos[g as usize]).collect(),
+            triangles,
+        };
         let of = |g: u32| st.slot[g as usize] as usize;
         let stored = (!st.slot.is_empty()).then(|| {
             (
@@ -860,4 +927,53 @@ fn run_region(
         return (out, (Vec::new(), Vec::new()));
     }
     (out, (c.log, c.pass_ends))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Cell, GridSpec, MeshOptions};
+    use voxoct_core::glam::IVec3;
+
+    /// A plan that keeps no triangles gives each region the very copy of a plan that keeps
+    /// them: the same local triangles, in the same order, from the mesh's.
+    #[test]
+    fn triangles_numbered_again_are_the_kept_ones() {
+        let grid = GridSpec {
+            origin: Vec3::ZERO,
+            cell: 0.001,
+            resolution: 32,
+        };
+        let c = IVec3::splat(16);
+        let mut cells = Vec::new();
+        for z in 0..32 {
+            for y in 0..32 {
+                for x in 0..32 {
+                    let p = IVec3::new(x, y, z);
+                    let d = (p - c).as_vec3().length() - 12.0;
+                    if d.abs() < 1.0 {
+                        cells.push(Cell {
+                            coord: p.as_uvec3(),
+                            hits: 1,
+                            sdf_sum: d * 0.001,
+                        });
+                    }
+                }
+            }
+        }
+        let mesh = crate::mesh_cells(&cells, &grid, &MeshOptions::smooth()).unwrap();
+        let cubes = Grid::new(&mesh, 512).unwrap();
+        for grid in [cubes, cubes.shifted()] {
+            let kept = plan(&mesh, Some(&grid), true);
+            let again = plan(&mesh, Some(&grid), false);
+            assert!(kept.regions.len() > 8);
+            assert_eq!(kept.movable, again.movable);
+            for (k, a) in kept.regions.iter().zip(&again.regions) {
+                assert!(a.tris.is_empty());
+                assert_eq!((&k.verts, &k.ids, k.own), (&a.verts, &a.ids, a.own));
+                assert_eq!(k.tris, a.local_triangles(&mesh.triangles));
+                assert_eq!(k.tris, k.local_triangles(&[]));
+            }
+        }
+    }
 }
