@@ -593,19 +593,33 @@ impl<'m> Rounds<'m> {
         }
         // The second phase: the shifted cubes, from the vertices the first could not move.
         if let Some(grid) = &self.grid {
-            let tris = std::mem::take(&mut state.slots);
+            // Planned on the vertices that are left only, numbered in the same order (the
+            // regions come out the same), so that the plan's work and arrays follow the
+            // mesh that is left rather than the input's vertex count; then numbered back.
+            let mut tris = std::mem::take(&mut state.slots);
+            let (local_of, live) = numbered_used(nv, &tris);
+            for t in &mut tris {
+                *t = t.map(|k| local_of[k as usize]);
+            }
+            drop(local_of);
             let lookup = Mesh {
-                vertices: std::mem::take(&mut state.pos),
+                vertices: live.iter().map(|&g| state.pos[g as usize]).collect(),
                 triangles: tris,
             };
-            let shifted = super::regions::plan(&lookup, Some(&grid.shifted()), true);
+            let mut shifted = super::regions::plan(&lookup, Some(&grid.shifted()), true);
             // The plan holds the phase's triangles: its regions' copies.
-            let Mesh {
-                vertices,
-                triangles,
-            } = lookup;
-            state.pos = vertices;
-            drop(triangles);
+            drop(lookup);
+            let mut movable = vec![false; nv];
+            for (&g, &m) in live.iter().zip(&shifted.movable) {
+                movable[g as usize] = m;
+            }
+            shifted.movable = movable;
+            for region in &mut shifted.regions {
+                for v in &mut region.verts {
+                    *v = live[*v as usize];
+                }
+            }
+            drop(live);
             let cache = Some(&self.shifted_done[..]);
             let (next, outs) = state.phase(
                 &shifted,
@@ -660,12 +674,25 @@ impl<'m> Rounds<'m> {
             *t = t.map(|k| local_of[k as usize]);
         }
         drop(local_of);
-        let of = |g: &u32| slot[at(g)] as usize;
-        let quadrics = (
-            live.iter().map(|g| quad[of(g)]).collect(),
-            live.iter().map(|g| nrm[of(g)]).collect(),
-        );
-        drop((quad, nrm, slot));
+        // The quadrics of the vertices that are left, in place: they all have a slot, and
+        // both are numbered in increasing global order, so each one's slot is at or after
+        // its new place (no second copy of the largest arrays, even for a moment).
+        let (mut quad, mut nrm) = (quad, nrm);
+        for (i, g) in live.iter().enumerate() {
+            let s = slot[at(g)] as usize;
+            debug_assert!(
+                s >= i,
+                "a vertex that is left has a slot at or after its place"
+            );
+            quad[i] = quad[s];
+            nrm[i] = nrm[s];
+        }
+        drop(slot);
+        quad.truncate(live.len());
+        nrm.truncate(live.len());
+        quad.shrink_to_fit();
+        nrm.shrink_to_fit();
+        let quadrics = (quad, nrm);
         let mut seam = Collapser::new(
             Mesh {
                 vertices: live.iter().map(|g| pos[at(g)]).collect(),
