@@ -7,7 +7,8 @@
 #   bench     criterion benches of every crate (`cargo bench --workspace`; `--quick` passes
 #             criterion's quick mode), one row per bench: mean time and throughput;
 #   pipeline  the scan example's `--stats` per stage, for the built-in simulated scan and, when
-#             ../shared/data exists, every development scan at 1 mm and 0.5 mm and the real NYU
+#             ../shared/data exists, every development scan at 1 mm and 0.5 mm (the bunny also
+#             at 0.25 mm) and the real NYU
 #             room frame (examples/nyu-room.toml) at 5 mm and 2 mm; with DRAGON_MODEL=FILE (a
 #             Z-up mesh in millimetres, e.g. the Stanford dragon 200 mm long), a simulated scan
 #             of it at 0.5 mm and 0.25 mm;
@@ -98,8 +99,9 @@ s = d["seconds"]
 ms = lambda k: "%.0f" % (1000 * s.get(k, 0.0))
 m = s.get("mesh_steps", {})
 steps = "/".join("%.0f" % (1000 * m.get(k, 0.0)) for k in ("closure", "march", "smooth", "simplify"))
-print("| %s | %.2f | %d | %d | %s | %s | %s | %s | %s | %s | %s | %.0f |" % (
-    name, d["leaf_size_m"] * 1000, d["leaves"], d["mesh_triangles"], ms("load"), ms("filter"),
+print("| %s | %.2f | %d | %d | %d | %s | %s | %s | %s | %s | %s | %s | %.0f |" % (
+    name, d["leaf_size_m"] * 1000, d["leaves"], d.get("mesh_marched_triangles", 0),
+    d["mesh_triangles"], ms("load"), ms("filter"),
     ms("insert"), ms("mesh"), steps, ms("write"), ms("total"), d["peak_rss_bytes"] / 2**20))
 EOF
 }
@@ -110,12 +112,13 @@ if want pipeline; then
     echo
     stamp
     echo "\`target/release/examples/scan --stats\` (release build, default options, the file written"
-    echo "as STL): leaf size, marked leaves, output triangles, milliseconds per stage, peak memory."
+    echo "as STL): leaf size, marked leaves, marched and output triangles, milliseconds per stage,"
+    echo "peak memory."
     echo "The mesh stage's steps (\`seconds.mesh_steps\`): closing what no view saw, marching,"
     echo "smoothing with the untangling that proves the mesh free of self-intersections, simplification."
     echo
-    echo "| run | leaf mm | leaves | triangles | load | filter | insert | mesh | closure/march/smooth/simplify | write | total | peak MiB |"
-    echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+    echo "| run | leaf mm | leaves | marched | triangles | load | filter | insert | mesh | closure/march/smooth/simplify | write | total | peak MiB |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     "$bin" -q --out "$out/sim.stl" --stats "$out/sim.json"
     stats_row "built-in simulated scan (\`scan\`, no flags)" "$out/sim.json"
     if [ -d "$data" ]; then
@@ -126,6 +129,12 @@ if want pipeline; then
           stats_row "\`$n\`" "$out/$n-$leaf.json"
         done
       done
+      # A fine leaf: a mesh of over 16 M marched triangles, smoothed and simplified whole.
+      if [ -d "$data/bunny-scan" ]; then
+        "$bin" -q --input "$data/bunny-scan" --leaf 0.00025 --out "$out/bunny-0.00025.stl" \
+          --stats "$out/bunny-0.00025.json"
+        stats_row "\`bunny-scan\`" "$out/bunny-0.00025.json"
+      fi
     else
       echo
       echo "(The development scans in ../shared/data were not present: only the built-in scan.)"
