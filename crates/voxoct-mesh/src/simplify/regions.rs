@@ -68,7 +68,7 @@ pub(super) struct Plan {
     pub(super) regions: Vec<Region>,
     /// When the regions keep no triangles: the local number of each vertex whose every
     /// triangle belongs to one region, in that region (4 bytes a vertex instead of 12 a
-    /// triangle).
+    /// triangle). Empty when they keep them.
     local_of: Vec<u32>,
 }
 
@@ -77,7 +77,7 @@ impl Plan {
     /// (the triangles the plan was made of) that it names, numbered again: a vertex of
     /// its own by `local_of`, the few others (its border) by a binary search.
     fn local_triangles(&self, region: &Region, source: &[[u32; 3]]) -> Vec<[u32; 3]> {
-        if !region.tris.is_empty() {
+        if self.local_of.is_empty() {
             return region.tris.clone();
         }
         let (inner, others) = region.verts.split_at(region.inner);
