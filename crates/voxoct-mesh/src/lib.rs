@@ -341,7 +341,7 @@ fn process_group(
 /// The groups are copied out of `raw`, which is kept for a group that must be processed
 /// again. When all the pieces make one group (a single large piece, the usual object),
 /// nothing can be processed again: `raw` itself becomes the group, as the copy would be
-/// (its vertices numbered by first use, the unused ones dropped), and is processed in
+/// (its vertices renumbered by first use, the unused ones dropped), and is processed in
 /// place, so the marched mesh is never held twice.
 fn by_pieces(
     mut raw: Mesh,
@@ -369,7 +369,8 @@ fn by_pieces(
     drop(size);
     if groups == 1 {
         drop((roots, group));
-        raw.number_by_first_use();
+        raw.renumber_by_first_use();
+        raw.remove_unused_vertices();
         let stats = process_group(&mut raw, smoothing, simplify, times);
         let t0 = Instant::now();
         let bad = raw.self_intersecting_triangles();

@@ -205,7 +205,7 @@ pub(crate) fn simplify_in_regions(
     }
     // The rounds work on the input itself, renumbered (no copy of it is kept); it is
     // numbered back when it is left unchanged.
-    let order = renumber_by_first_use(mesh);
+    let order = mesh.renumber_by_first_use();
     // A triangle target is met in the order of cost over the whole mesh: one region.
     let per_region = if opts.target_triangles.is_some() {
         0
@@ -308,35 +308,7 @@ fn run_rounds(
 /// A round's collapses `(u, w)` in order, and where each pass's collapses end.
 type RoundLog = (Vec<(u32, u32)>, Vec<usize>);
 
-/// Renumbers `mesh`'s vertices in the order the triangles first use them (the unused ones
-/// last, in their order), so that walking the triangles in order touches vertex data in
-/// order (the marcher numbers vertices by grid edge, far from its triangle order: this
-/// halves the time); returns the old index of each new one, for [`restore_numbering`].
-fn renumber_by_first_use(mesh: &mut Mesh) -> Vec<u32> {
-    let nv = mesh.vertices.len();
-    let mut new_of = vec![u32::MAX; nv];
-    let mut old_of = Vec::with_capacity(nv);
-    for t in &mut mesh.triangles {
-        for k in t.iter_mut() {
-            let m = &mut new_of[*k as usize];
-            if *m == u32::MAX {
-                *m = old_of.len() as u32;
-                old_of.push(*k);
-            }
-            *k = *m;
-        }
-    }
-    for (old, m) in new_of.iter().enumerate() {
-        if *m == u32::MAX {
-            old_of.push(old as u32);
-        }
-    }
-    drop(new_of);
-    mesh.vertices = old_of.iter().map(|&o| mesh.vertices[o as usize]).collect();
-    old_of
-}
-
-/// Undoes [`renumber_by_first_use`], given what it returned.
+/// Undoes [`Mesh::renumber_by_first_use`], given what it returned.
 fn restore_numbering(mesh: &mut Mesh, old_of: &[u32]) {
     let mut vertices = mesh.vertices.clone();
     for (new, &old) in old_of.iter().enumerate() {
@@ -352,7 +324,7 @@ fn restore_numbering(mesh: &mut Mesh, old_of: &[u32]) {
 #[cfg(test)]
 fn renumbered_by_first_use(mesh: &Mesh) -> Mesh {
     let mut out = mesh.clone();
-    renumber_by_first_use(&mut out);
+    out.renumber_by_first_use();
     out
 }
 
@@ -378,18 +350,24 @@ mod tests {
 
     /// A smoothed 1 mm mesh of a ball of radius 6 cells, renumbered by first use.
     fn ball() -> Mesh {
+        ball_of(16, 6.0)
+    }
+
+    /// A smoothed 1 mm mesh of a ball of `radius` cells centred in a grid of `resolution`
+    /// cells, renumbered by first use.
+    pub(super) fn ball_of(resolution: i32, radius: f32) -> Mesh {
         let grid = GridSpec {
             origin: Vec3::ZERO,
             cell: 0.001,
-            resolution: 16,
+            resolution: resolution as u32,
         };
-        let c = IVec3::splat(8);
+        let c = IVec3::splat(resolution / 2);
         let mut cells = Vec::new();
-        for z in 0..16 {
-            for y in 0..16 {
-                for x in 0..16 {
+        for z in 0..resolution {
+            for y in 0..resolution {
+                for x in 0..resolution {
                     let p = IVec3::new(x, y, z);
-                    let d = (p - c).as_vec3().length() - 6.0;
+                    let d = (p - c).as_vec3().length() - radius;
                     if d.abs() < 1.0 {
                         cells.push(Cell {
                             coord: p.as_uvec3(),

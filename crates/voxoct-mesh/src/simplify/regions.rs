@@ -975,36 +975,12 @@ fn run_region(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Cell, GridSpec, MeshOptions};
-    use voxoct_core::glam::IVec3;
 
     /// A plan that keeps no triangles gives each region the very copy of a plan that keeps
     /// them: the same local triangles, in the same order, from the mesh's.
     #[test]
     fn triangles_numbered_again_are_the_kept_ones() {
-        let grid = GridSpec {
-            origin: Vec3::ZERO,
-            cell: 0.001,
-            resolution: 32,
-        };
-        let c = IVec3::splat(16);
-        let mut cells = Vec::new();
-        for z in 0..32 {
-            for y in 0..32 {
-                for x in 0..32 {
-                    let p = IVec3::new(x, y, z);
-                    let d = (p - c).as_vec3().length() - 12.0;
-                    if d.abs() < 1.0 {
-                        cells.push(Cell {
-                            coord: p.as_uvec3(),
-                            hits: 1,
-                            sdf_sum: d * 0.001,
-                        });
-                    }
-                }
-            }
-        }
-        let mesh = crate::mesh_cells(&cells, &grid, &MeshOptions::smooth()).unwrap();
+        let mesh = super::super::tests::ball_of(32, 12.0);
         let cubes = Grid::new(&mesh, 512).unwrap();
         for grid in [cubes, cubes.shifted()] {
             let kept = plan(&mesh, Some(&grid), true);
