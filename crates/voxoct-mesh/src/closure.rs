@@ -34,6 +34,8 @@ use std::collections::VecDeque;
 use voxoct_core::glam::UVec3;
 use voxoct_core::{Cell, GridSpec};
 
+use crate::par;
+
 /// Hit count given to a cell that [`close_cells`] adds: high enough to pass any `min_hits`.
 pub const CLOSED_HITS: u32 = 1 << 16;
 
@@ -80,7 +82,7 @@ pub fn close_cells(
     floor: u32,
     min_hits: u32,
     prior_cells: f32,
-    seen_empty: impl Fn(UVec3) -> bool,
+    seen_empty: impl Fn(UVec3) -> bool + Sync,
 ) -> Vec<Cell> {
     if lo.cmpgt(hi).any() {
         return cells;
@@ -92,41 +94,51 @@ pub fn close_cells(
         (d.z as usize * dims[1] + d.y as usize) * dims[0] + d.x as usize
     };
     let n = dims[0] * dims[1] * dims[2];
-    let mut known = Vec::with_capacity(n);
-    for z in lo.z..=hi.z {
-        for y in lo.y..=hi.y {
-            for x in lo.x..=hi.x {
-                let c = UVec3::new(x, y, z);
-                known.push(if y < floor {
-                    Known::Excluded
-                } else if seen_empty(c) {
-                    Known::Empty
-                } else {
-                    Known::Unknown
-                });
-            }
-        }
-    }
+    let counts =
+        |c: &Cell| c.hits >= min_hits.max(1) && c.coord.cmpge(lo).all() && c.coord.cmple(hi).all();
     let mut marked = vec![false; n];
-    for c in &cells {
-        if c.hits >= min_hits.max(1) && c.coord.cmpge(lo).all() && c.coord.cmple(hi).all() {
-            let i = index(c.coord);
-            marked[i] = true;
-            if known[i] != Known::Excluded {
-                known[i] = if c.mean_sdf() <= 0.0 {
-                    Known::Solid
-                } else {
-                    Known::Empty
-                };
-            }
-        }
+    for c in cells.iter().filter(|c| counts(c)) {
+        marked[index(c.coord)] = true;
     }
-    seal_behind_surfaces(dims, &mut known, &marked);
-    let cost = face_costs(dims, &marked, prior_cells);
+    // The prices (from the marked cells alone) beside what the views saw.
+    let (known, cost) = par::join(
+        || {
+            let mut known = vec![Known::Unknown; n];
+            // Row by row (x fastest): row `r` is `(y, z) = (r % dims[1], r / dims[1])`.
+            par::for_each_chunk_mut(&mut known, dims[0], |r, row| {
+                let (y, z) = (lo.y + (r % dims[1]) as u32, lo.z + (r / dims[1]) as u32);
+                for (dx, k) in row.iter_mut().enumerate() {
+                    *k = if y < floor {
+                        Known::Excluded
+                    } else if seen_empty(UVec3::new(lo.x + dx as u32, y, z)) {
+                        Known::Empty
+                    } else {
+                        Known::Unknown
+                    };
+                }
+            });
+            // A marked cell is solid or empty by its own signed distance (of a repeated
+            // cell, the last one).
+            for c in cells.iter().filter(|c| counts(c)) {
+                let i = index(c.coord);
+                if known[i] != Known::Excluded {
+                    known[i] = if c.mean_sdf() <= 0.0 {
+                        Known::Solid
+                    } else {
+                        Known::Empty
+                    };
+                }
+            }
+            seal_behind_surfaces(dims, &mut known, &marked);
+            known
+        },
+        || face_costs(dims, &marked, prior_cells),
+    );
     let inside = close_coarse(dims, &known, &cost, coarse_levels(prior_cells));
     // Unknown cells the cut put inside, and those sealed behind a surface (`inside` is false
     // for empty and excluded cells).
-    let added: Vec<bool> = inside.iter().zip(&marked).map(|(&a, &m)| a && !m).collect();
+    let mut added = Vec::new();
+    par::map_into(&mut added, n, |i| inside[i] && !marked[i]);
     drop((inside, marked, known));
     let mut cells = cells;
     cells.reserve_exact(added.iter().filter(|&&a| a).count());
@@ -351,15 +363,13 @@ pub fn close_unknown_weighted(dims: [usize; 3], known: &[Known], cost: &[u8]) ->
     assert_eq!(cost.len(), known.len(), "cost size");
     let mut g = Graph::new(dims, known, cost);
     g.max_flow();
-    known
-        .iter()
-        .enumerate()
-        .map(|(i, k)| match k {
-            Known::Solid => true,
-            Known::Empty | Known::Excluded => false,
-            Known::Unknown => g.tree[g.node(i) as usize] != SRC,
-        })
-        .collect()
+    let mut inside = Vec::new();
+    par::map_into(&mut inside, known.len(), |i| match known[i] {
+        Known::Solid => true,
+        Known::Empty | Known::Excluded => false,
+        Known::Unknown => g.tree[g.node(i) as usize] != SRC,
+    });
+    inside
 }
 
 /// Price of a face that touches an observation in [`close_unknown_weighted`]'s units.
@@ -413,37 +423,38 @@ fn close_coarse_from(
     stacked: bool,
 ) -> Vec<bool> {
     let cd = dims.map(|d| d.div_ceil(2));
-    let mut votes = vec![(0u8, 0u8); cd[0] * cd[1] * cd[2]];
-    let mut coarse_cost = vec![u8::MAX; votes.len()];
-    let mut any = vec![false; votes.len()];
-    let mut i = 0;
-    for z in 0..dims[2] {
-        for y in 0..dims[1] {
-            let row = ((z / 2) * cd[1] + y / 2) * cd[0];
-            for x in 0..dims[0] {
-                let b = row + x / 2;
-                coarse_cost[b] = coarse_cost[b].min(cost[i]);
-                match known[i] {
-                    Known::Empty => votes[b].0 += 1,
-                    Known::Solid => votes[b].1 += 1,
-                    Known::Unknown => any[b] = true,
-                    Known::Excluded => {}
+    // Each block's side and the price of its faces (its cheapest cell's), a layer of
+    // blocks at a time.
+    let mut blocks = vec![(Known::Excluded, u8::MAX); cd[0] * cd[1] * cd[2]];
+    par::for_each_chunk_mut(&mut blocks, cd[0] * cd[1], |bz, layer| {
+        let mut votes = vec![(0u8, 0u8, false); layer.len()];
+        for z in 2 * bz..(2 * bz + 2).min(dims[2]) {
+            for y in 0..dims[1] {
+                let row = (y / 2) * cd[0];
+                let i = (z * dims[1] + y) * dims[0];
+                for x in 0..dims[0] {
+                    let b = row + x / 2;
+                    layer[b].1 = layer[b].1.min(cost[i + x]);
+                    match known[i + x] {
+                        Known::Empty => votes[b].0 += 1,
+                        Known::Solid => votes[b].1 += 1,
+                        Known::Unknown => votes[b].2 = true,
+                        Known::Excluded => {}
+                    }
                 }
-                i += 1;
             }
         }
-    }
-    let coarse: Vec<Known> = votes
-        .iter()
-        .zip(&any)
-        .map(|(&(e, s), &u)| match e.cmp(&s) {
-            std::cmp::Ordering::Greater => Known::Empty,
-            std::cmp::Ordering::Less => Known::Solid,
-            std::cmp::Ordering::Equal if stacked && s > 0 => Known::Solid,
-            std::cmp::Ordering::Equal if u || e > 0 => Known::Unknown,
-            std::cmp::Ordering::Equal => Known::Excluded,
-        })
-        .collect();
+        for (block, &(e, s, u)) in layer.iter_mut().zip(&votes) {
+            block.0 = match e.cmp(&s) {
+                std::cmp::Ordering::Greater => Known::Empty,
+                std::cmp::Ordering::Less => Known::Solid,
+                std::cmp::Ordering::Equal if stacked && s > 0 => Known::Solid,
+                std::cmp::Ordering::Equal if u || e > 0 => Known::Unknown,
+                std::cmp::Ordering::Equal => Known::Excluded,
+            };
+        }
+    });
+    let (coarse, coarse_cost): (Vec<Known>, Vec<u8>) = blocks.into_iter().unzip();
     let coarse_inside = if levels > 1 {
         close_coarse_from(cd, &coarse, &coarse_cost, levels - 1, stacked)
     } else {
@@ -460,25 +471,25 @@ fn close_coarse_from(
     }
     // The fine problem in a band around the coarse cut: unknown cells of uniform blocks take
     // their block's side; the rest are decided again, cell by cell.
-    let mut fine = Vec::with_capacity(known.len());
-    for z in 0..dims[2] {
-        for y in 0..dims[1] {
-            let row = ((z / 2) * cd[1] + y / 2) * cd[0];
-            for x in 0..dims[0] {
-                let b = row + x / 2;
-                fine.push(match known[fine.len()] {
-                    Known::Unknown if uniform[b] => {
-                        if coarse_inside[b] {
-                            Known::Solid
-                        } else {
-                            Known::Empty
-                        }
+    let mut fine = vec![Known::Excluded; known.len()];
+    par::for_each_chunk_mut(&mut fine, dims[0], |r, row| {
+        let (y, z) = (r % dims[1], r / dims[1]);
+        let blocks = ((z / 2) * cd[1] + y / 2) * cd[0];
+        let known = &known[r * dims[0]..(r + 1) * dims[0]];
+        for (x, (f, &k)) in row.iter_mut().zip(known).enumerate() {
+            let b = blocks + x / 2;
+            *f = match k {
+                Known::Unknown if uniform[b] => {
+                    if coarse_inside[b] {
+                        Known::Solid
+                    } else {
+                        Known::Empty
                     }
-                    k => k,
-                });
-            }
+                }
+                k => k,
+            };
         }
-    }
+    });
     close_unknown_weighted(dims, &fine, cost)
 }
 
@@ -514,20 +525,14 @@ fn uniform_blocks(dims: [usize; 3], inside: &[bool]) -> Vec<bool> {
     for (axis, &stride) in strides.iter().enumerate() {
         let len = dims[axis];
         let (prev_any, prev_all) = (any.clone(), all.clone());
-        for i in 0..inside.len() {
+        par::fill(&mut any, |i| {
             let c = i / stride % len;
-            let below = (c > 0).then(|| i - stride);
-            let above = (c + 1 < len).then(|| i + stride);
-            for j in [below, above] {
-                match j {
-                    Some(j) => {
-                        any[i] |= prev_any[j];
-                        all[i] &= prev_all[j];
-                    }
-                    None => all[i] = false,
-                }
-            }
-        }
+            prev_any[i] || (c > 0 && prev_any[i - stride]) || (c + 1 < len && prev_any[i + stride])
+        });
+        par::fill(&mut all, |i| {
+            let c = i / stride % len;
+            prev_all[i] && c > 0 && prev_all[i - stride] && c + 1 < len && prev_all[i + stride]
+        });
     }
     inside
         .iter()

@@ -291,6 +291,10 @@ impl Field<'_> {
     }
 }
 
+/// Bricks per parallel task of [`peel_unobserved`]'s search (the result does not depend on
+/// it).
+const PEEL_BRICKS_PER_TASK: usize = 32;
+
 /// Turns outside every unobserved inside cell that lies, along a grid axis, between the
 /// outside (an absent cell at or above the layer `floor`, shifted coordinates) and an
 /// observed cell; then drops the pieces of inside cells smaller than `min_piece` cells that
@@ -305,16 +309,20 @@ impl Field<'_> {
 fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_piece: usize) {
     let below_floor = |g: [i64; 3]| g[1] < i64::from(floor);
     let mut peeled = Vec::new();
-    for (b, k) in keys.iter().enumerate() {
+    let shared: &Field<'_> = field;
+    // Brick by brick (in parallel, the cells found appended in brick order).
+    let scan = |b: usize, peeled: &mut Vec<[i64; 3]>| {
+        let field = shared;
+        let k = &keys[b];
         // A brick without a block of values holds no cell.
         let Some(b) = field.block.get(b).copied().filter(|&v| v != NONE) else {
-            continue;
+            return;
         };
         let b = b as usize;
         let vals = &field.vals[b * 512..(b + 1) * 512];
         // Only unobserved inside cells can be peeled.
         if !vals.iter().any(|&f| unobserved_inside(f)) {
-            continue;
+            return;
         }
         let base = [0, 1, 2].map(|a| i64::from(k[a] * 8));
         // The bricks across each face, `[axis][0: minus, 1: plus]`.
@@ -366,7 +374,8 @@ fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_pie
                 peeled.push([base[0] + p[0], base[1] + p[1], base[2] + p[2]]);
             }
         }
-    }
+    };
+    par::extend_in_order(&mut peeled, keys.len(), PEEL_BRICKS_PER_TASK, scan);
     for &g in &peeled {
         if let Some(i) = field.slot(g) {
             field.vals[i] = f32::INFINITY;

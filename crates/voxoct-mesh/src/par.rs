@@ -74,6 +74,24 @@ pub(crate) fn fill<T: Send>(dst: &mut [T], f: impl Fn(usize) -> T + Sync) {
     }
 }
 
+/// `f(k, chunk)` for the consecutive chunks of `dst`, `len` items each (the last may be
+/// shorter), `k` counting from 0.
+pub(crate) fn for_each_chunk_mut<T: Send>(
+    dst: &mut [T],
+    len: usize,
+    f: impl Fn(usize, &mut [T]) + Sync,
+) {
+    let len = len.max(1);
+    #[cfg(feature = "parallel")]
+    dst.par_chunks_mut(len)
+        .enumerate()
+        .for_each(|(k, c)| f(k, c));
+    #[cfg(not(feature = "parallel"))]
+    for (k, c) in dst.chunks_mut(len).enumerate() {
+        f(k, c);
+    }
+}
+
 /// `f(i, a_i, b_i)` for the pairs of two sequences of the same length, `i` counting from 0.
 pub(crate) fn for_each_zip<A, B>(
     a: impl IntoIterator<Item = A>,
