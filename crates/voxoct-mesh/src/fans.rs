@@ -16,13 +16,30 @@ pub(crate) struct VertexFans {
     pub(crate) pairs: Vec<[u32; 2]>,
 }
 
+/// Triangles from which [`VertexFans::rebuild`] fills rows in parallel.
+const PARALLEL_TRIANGLES: usize = 1 << 15;
+
+/// Parts of [`VertexFans::rebuild`] at most (each reads every triangle).
+const MAX_PARTS: usize = 4;
+
+/// `items` split into consecutive slices of the given sizes (summing to at most its length).
+fn split_by<T>(mut items: &mut [T], sizes: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
+    let mut out = Vec::new();
+    for n in sizes {
+        let (a, b) = std::mem::take(&mut items).split_at_mut(n);
+        out.push(a);
+        items = b;
+    }
+    out
+}
+
 impl VertexFans {
     /// The fans of `nv` vertices over the triangles that `keep` accepts (whose indices
     /// must then be below `nv`), with the corners' vertex pairs when `corners`.
     pub(crate) fn new(
         nv: usize,
         triangles: &[[u32; 3]],
-        keep: impl Fn([u32; 3]) -> bool,
+        keep: impl Fn([u32; 3]) -> bool + Sync,
         corners: bool,
     ) -> Self {
         let mut s = Self::default();
@@ -30,22 +47,54 @@ impl VertexFans {
         s
     }
 
-    /// As [`VertexFans::new`], reusing the buffers.
+    /// As [`VertexFans::new`], reusing the buffers. A large mesh's rows are filled in
+    /// parallel, a range of vertices per task (each task reads every triangle in order and
+    /// fills the rows of its own vertices): the same rows as one pass.
     pub(crate) fn rebuild(
         &mut self,
         nv: usize,
         triangles: &[[u32; 3]],
-        keep: impl Fn([u32; 3]) -> bool,
+        keep: impl Fn([u32; 3]) -> bool + Sync,
         corners: bool,
     ) {
+        let parts = if triangles.len() >= PARALLEL_TRIANGLES {
+            crate::par::threads().clamp(1, MAX_PARTS)
+        } else {
+            1
+        };
+        self.rebuild_in_parts(nv, triangles, keep, corners, parts);
+    }
+
+    /// [`VertexFans::rebuild`] with the vertices split into `parts` ranges (at least one).
+    fn rebuild_in_parts(
+        &mut self,
+        nv: usize,
+        triangles: &[[u32; 3]],
+        keep: impl Fn([u32; 3]) -> bool + Sync,
+        corners: bool,
+        parts: usize,
+    ) {
+        let parts = parts.max(1);
+        // Part `p` has the vertices `bounds[p]..bounds[p + 1]`.
+        let bounds: Vec<usize> = (0..=parts).map(|p| nv * p / parts).collect();
+        let ranges = || bounds.windows(2).map(|w| w[0]..w[1]);
         self.start.clear();
         self.start.resize(nv + 1, 0);
-        for t in triangles {
-            if keep(*t) {
+        // Counts: vertex v's in start[v + 1].
+        let count_part = |_: usize, count: &mut [u32], r: Range<usize>| {
+            for t in triangles.iter().filter(|t| keep(**t)) {
                 for &k in t {
-                    self.start[k as usize + 1] += 1;
+                    if r.contains(&(k as usize)) {
+                        count[k as usize - r.start] += 1;
+                    }
                 }
             }
+        };
+        if parts == 1 {
+            count_part(0, &mut self.start[1..], 0..nv);
+        } else {
+            let counts = split_by(&mut self.start[1..], ranges().map(|r| r.len()));
+            crate::par::for_each_zip(counts, ranges(), count_part);
         }
         for i in 0..nv {
             self.start[i + 1] += self.start[i];
@@ -57,19 +106,52 @@ impl VertexFans {
         if corners {
             self.pairs.resize(len, [0; 2]);
         }
-        // Fill using start[v] as a cursor, then shift back.
-        for (i, t) in triangles.iter().enumerate() {
-            if !keep(*t) {
-                continue;
-            }
-            for j in 0..3 {
-                let c = &mut self.start[t[j] as usize];
-                self.tris[*c as usize] = i as u32;
-                if corners {
-                    self.pairs[*c as usize] = [t[(j + 1) % 3], t[(j + 2) % 3]];
+        // Fill using start[v] as a cursor, then shift back. Part p's rows are the entries
+        // from start[bounds[p]] (its first vertex's row) on.
+        let first: Vec<usize> = bounds.iter().map(|&b| self.start[b] as usize).collect();
+        let fill_part = |p: usize,
+                         (cursor, tris, pairs): (&mut [u32], &mut [u32], &mut [[u32; 2]]),
+                         r: Range<usize>| {
+            let base = first[p];
+            for (i, t) in triangles.iter().enumerate() {
+                if !keep(*t) {
+                    continue;
                 }
-                *c += 1;
+                for j in 0..3 {
+                    let k = t[j] as usize;
+                    if !r.contains(&k) {
+                        continue;
+                    }
+                    let c = &mut cursor[k - r.start];
+                    tris[*c as usize - base] = i as u32;
+                    if corners {
+                        pairs[*c as usize - base] = [t[(j + 1) % 3], t[(j + 2) % 3]];
+                    }
+                    *c += 1;
+                }
             }
+        };
+        if parts == 1 {
+            fill_part(
+                0,
+                (&mut self.start[..nv], &mut self.tris, &mut self.pairs),
+                0..nv,
+            );
+        } else {
+            let sizes = || first.windows(2).map(|w| w[1] - w[0]);
+            let cursors = split_by(&mut self.start[..nv], ranges().map(|r| r.len()));
+            let tris = split_by(&mut self.tris, sizes());
+            let pairs = if corners {
+                split_by(&mut self.pairs, sizes())
+            } else {
+                (0..parts).map(|_| &mut [][..]).collect()
+            };
+            let work = cursors
+                .into_iter()
+                .zip(tris)
+                .zip(pairs)
+                .map(|((c, t), p)| (c, t, p));
+            crate::par::for_each_zip(work, ranges(), fill_part);
         }
         for i in (1..=nv).rev() {
             self.start[i] = self.start[i - 1];
@@ -111,5 +193,36 @@ mod tests {
         assert_eq!(valid.fan(3), [1, 3]);
         assert_eq!(valid.fan(1), [0, 3]);
         assert!(valid.pairs.is_empty());
+    }
+
+    proptest::proptest! {
+        /// Rows filled by vertex ranges in parallel are those of one pass, with and without
+        /// corners and a filter, whatever the number of parts (more than vertices too), and
+        /// a rebuild after a larger mesh leaves nothing of it.
+        #[test]
+        fn rows_filled_in_parts_are_those_of_one_pass(
+            nv in 1usize..40,
+            raw in proptest::collection::vec(proptest::array::uniform3(0u32..40), 0..200),
+            parts in 2usize..9,
+            corners in proptest::bool::ANY,
+            filtered in proptest::bool::ANY,
+        ) {
+            let tris: Vec<[u32; 3]> = raw.iter().map(|t| t.map(|k| k % nv as u32)).collect();
+            let keep = |t: [u32; 3]| !filtered || t[0] != t[1];
+            let mut one = VertexFans::default();
+            one.rebuild_in_parts(nv, &tris, keep, corners, 1);
+            let mut many = VertexFans::new(2 * nv, &[[0, 1, 2]; 3], |_| true, true);
+            many.rebuild_in_parts(nv, &tris, keep, corners, parts);
+            proptest::prop_assert_eq!(&one.start, &many.start);
+            proptest::prop_assert_eq!(&one.tris, &many.tris);
+            proptest::prop_assert_eq!(&one.pairs, &many.pairs);
+            for v in 0..nv as u32 {
+                let want: Vec<u32> = (0..tris.len() as u32)
+                    .filter(|&i| keep(tris[i as usize]))
+                    .flat_map(|i| tris[i as usize].iter().filter(move |&&k| k == v).map(move |_| i))
+                    .collect();
+                proptest::prop_assert_eq!(one.fan(v), &want[..]);
+            }
+        }
     }
 }

@@ -398,6 +398,36 @@ mod tests {
         work
     }
 
+    /// The candidates taken from the active vertices' fans are those of the look at every
+    /// triangle, in the same order, for any set of active and frozen vertices.
+    #[test]
+    fn candidates_from_the_fans_are_those_of_every_triangle() {
+        let mesh = ball();
+        let nv = mesh.vertices.len();
+        let frozen: Vec<bool> = (0..nv).map(|v| v % 7 == 3).collect();
+        let mut work = Collapser::new(
+            mesh.clone(),
+            initial_quadrics(&mesh),
+            frozen,
+            &Simplify::for_leaf(0.001),
+            origin(&mesh),
+        );
+        work.csr.rebuild(nv, &work.tris, |_| true, true);
+        let bits = |c: &[collapse::Candidate]| -> Vec<(u32, u32, u32, [u32; 3])> {
+            c.iter()
+                .map(|c| (c.key, c.u, c.w, c.p.to_array().map(f32::to_bits)))
+                .collect()
+        };
+        let (mut all, mut fans, mut scratch) = (Vec::new(), Vec::new(), Vec::new());
+        for every in [1, 2, 5, 40, nv + 1] {
+            work.active = (0..nv).map(|v| v % every == 1 % every).collect();
+            work.candidates_with(&mut all, &mut scratch, 0);
+            work.candidates_with(&mut fans, &mut scratch, usize::MAX);
+            assert!(!all.is_empty() || every > nv);
+            assert_eq!(bits(&all), bits(&fans), "every {every}th vertex active");
+        }
+    }
+
     #[test]
     fn a_replay_without_frozen_vertices_repeats_the_round_and_spares_frozen_ones() {
         let mesh = ball();
