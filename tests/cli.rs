@@ -51,6 +51,7 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
         "mesh_marched_triangles",
         "simplification",
         "mesh_vertices",
+        "mesh_genus",
         "closed_manifold",
         "peak_rss_bytes",
     ] {

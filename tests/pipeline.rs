@@ -195,6 +195,20 @@ fn concave_figurine_at_1mm_is_closed_accurate_and_complete() {
     assert_good_scan("figurine", 0.001, 0.85);
 }
 
+/// A noise-free scan keeps the model's topology: a sphere comes out with no handle, a torus
+/// with one (the genus of the closed mesh, from its vertex and triangle counts).
+#[test]
+fn noise_free_scans_keep_the_models_genus() {
+    for (name, genus) in [("sphere", 0), ("torus", 1)] {
+        let (config, snapshots) = simulate(name, 8, 1, true);
+        let r = run(&config, snapshots, 0.001, MeshOptions::smooth());
+        r.mesh
+            .check_closed_manifold()
+            .unwrap_or_else(|e| panic!("{name}: mesh not closed: {e}"));
+        assert_eq!(r.mesh.stats().genus(), Some(genus), "{name}");
+    }
+}
+
 #[test]
 fn thesis_mode_is_closed_too() {
     let (config, snapshots) = simulate("mug", 8, 1, false);

@@ -113,6 +113,9 @@ pub struct Stats {
     pub simplification: Option<Simplification>,
     pub mesh_vertices: usize,
     pub mesh_components: usize,
+    /// Handles (tunnels) summed over the components when closed (null otherwise): 0 for
+    /// each solid without a hole through it.
+    pub mesh_genus: Option<usize>,
     pub mesh_volume_m3: f64,
     pub mesh_area_m2: f64,
     pub closed_manifold: bool,
@@ -187,6 +190,7 @@ impl Stats {
             }),
             mesh_vertices: mesh.vertices.len(),
             mesh_components: mstats.components,
+            mesh_genus: mstats.genus().filter(|_| closed),
             mesh_volume_m3: mstats.volume,
             mesh_area_m2: mstats.area,
             closed_manifold: closed,

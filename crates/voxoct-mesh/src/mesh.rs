@@ -127,6 +127,24 @@ pub struct MeshStats {
     pub components: usize,
 }
 
+impl MeshStats {
+    /// The genus summed over the components — how many handles (tunnels) the surface has:
+    /// 0 for a sphere, 1 for a torus — when the mesh is a closed 2-manifold (as
+    /// [`Mesh::check_closed_manifold`] proves). There every edge has two triangles, so a
+    /// component with `V` vertices and `F` triangles has Euler characteristic `V - F / 2`
+    /// and genus `(2 - (V - F / 2)) / 2`. `None` when the counts cannot be a closed
+    /// 2-manifold's (an odd triangle count, or no whole non-negative genus).
+    #[must_use]
+    pub fn genus(&self) -> Option<usize> {
+        if self.triangles % 2 == 1 {
+            return None;
+        }
+        // 2 · Σ genus = 2 · components − Σ χ.
+        let twice = (2 * self.components + self.triangles / 2).checked_sub(self.vertices)?;
+        (twice % 2 == 0).then_some(twice / 2)
+    }
+}
+
 /// Relative area below which a triangle counts as degenerate: `|cross| <= EPS · longest²`.
 const DEGENERATE_REL: f32 = 1.0e-6;
 
@@ -563,5 +581,61 @@ mod tests {
         m.remove_unused_vertices();
         assert_eq!(m.triangles, vec![[0, 1, 2], [1, 0, 3], [2, 3, 0]]);
         assert_eq!(m.vertices, vec![p(4), p(2), p(5), p(0)]);
+    }
+
+    /// A closed torus of `n × m` quads (each two triangles) around the z axis.
+    fn torus(n: u32, m: u32) -> Mesh {
+        let mut vertices = Vec::new();
+        for i in 0..n {
+            for j in 0..m {
+                let (a, b) = (
+                    std::f32::consts::TAU * i as f32 / n as f32,
+                    std::f32::consts::TAU * j as f32 / m as f32,
+                );
+                let r = 2.0 + b.cos();
+                vertices.push(Vec3::new(r * a.cos(), r * a.sin(), b.sin()));
+            }
+        }
+        let at = |i: u32, j: u32| (i % n) * m + j % m;
+        let mut triangles = Vec::new();
+        for i in 0..n {
+            for j in 0..m {
+                let (p, q, r, s) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                triangles.extend([[p, q, r], [p, r, s]]);
+            }
+        }
+        Mesh {
+            vertices,
+            triangles,
+        }
+    }
+
+    #[test]
+    fn genus_counts_the_handles_of_a_closed_mesh() {
+        let t = torus(6, 4);
+        t.check_closed_manifold().unwrap();
+        assert_eq!(t.stats().genus(), Some(1));
+        let tetra = Mesh {
+            vertices: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        };
+        tetra.check_closed_manifold().unwrap();
+        assert_eq!(tetra.stats().genus(), Some(0));
+        // A torus and a tetrahedron: one handle in all.
+        let mut both = t.clone();
+        let k = both.vertices.len() as u32;
+        both.vertices
+            .extend(tetra.vertices.iter().map(|&v| v + Vec3::splat(10.0)));
+        both.triangles
+            .extend(tetra.triangles.iter().map(|t| t.map(|i| i + k)));
+        assert_eq!(both.stats().components, 2);
+        assert_eq!(both.stats().genus(), Some(1));
+        // Counts no closed mesh has: an odd triangle count, or more vertices than a sphere.
+        let mut open = tetra.clone();
+        open.triangles.pop();
+        assert_eq!(open.stats().genus(), None);
+        let mut spare = tetra.clone();
+        spare.vertices.push(Vec3::ONE);
+        assert_eq!(spare.stats().genus(), None);
     }
 }
