@@ -93,6 +93,8 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
         "mesh steps {steps:?} vs mesh {mesh}"
     );
     assert_eq!(stats["closed_manifold"], true);
+    // A closed mesh has a genus (null only for an open one).
+    assert!(stats["mesh_genus"].as_u64().is_some(), "{stats}");
     assert_eq!(stats["snapshots"], 4);
     // mm by default: a 12 cm sphere is ~120 units wide.
     let soup = voxoct::stl::read_file(dir.path().join("s.stl")).unwrap();

@@ -94,10 +94,11 @@ pub fn close_cells(
         (d.z as usize * dims[1] + d.y as usize) * dims[0] + d.x as usize
     };
     let n = dims[0] * dims[1] * dims[2];
-    let counts =
+    // The marked cells: enough hits, in the box.
+    let counted =
         |c: &Cell| c.hits >= min_hits.max(1) && c.coord.cmpge(lo).all() && c.coord.cmple(hi).all();
     let mut marked = vec![false; n];
-    for c in cells.iter().filter(|c| counts(c)) {
+    for c in cells.iter().filter(|c| counted(c)) {
         marked[index(c.coord)] = true;
     }
     // The prices (from the marked cells alone) beside what the views saw.
@@ -119,7 +120,7 @@ pub fn close_cells(
             });
             // A marked cell is solid or empty by its own signed distance (of a repeated
             // cell, the last one).
-            for c in cells.iter().filter(|c| counts(c)) {
+            for c in cells.iter().filter(|c| counted(c)) {
                 let i = index(c.coord);
                 if known[i] != Known::Excluded {
                     known[i] = if c.mean_sdf() <= 0.0 {

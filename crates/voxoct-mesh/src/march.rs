@@ -307,75 +307,12 @@ const PEEL_BRICKS_PER_TASK: usize = 32;
 /// by up to a cell wherever the outer face is ragged: over whole faces where noise or depth
 /// quantisation makes the shell two layers thick in patches.
 fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_piece: usize) {
-    let below_floor = |g: [i64; 3]| g[1] < i64::from(floor);
+    // Brick by brick (in parallel, the cells found appended in brick order).
     let mut peeled = Vec::new();
     let shared: &Field<'_> = field;
-    // Brick by brick (in parallel, the cells found appended in brick order).
-    let scan = |b: usize, peeled: &mut Vec<[i64; 3]>| {
-        let field = shared;
-        let k = &keys[b];
-        // A brick without a block of values holds no cell.
-        let Some(b) = field.block.get(b).copied().filter(|&v| v != NONE) else {
-            return;
-        };
-        let b = b as usize;
-        let vals = &field.vals[b * 512..(b + 1) * 512];
-        // Only unobserved inside cells can be peeled.
-        if !vals.iter().any(|&f| unobserved_inside(f)) {
-            return;
-        }
-        let base = [0, 1, 2].map(|a| i64::from(k[a] * 8));
-        // The bricks across each face, `[axis][0: minus, 1: plus]`.
-        let faces: [[Option<usize>; 2]; 3] = std::array::from_fn(|a| {
-            [-1i64, 1].map(|d| {
-                let mut n = k.map(i64::from);
-                n[a] += d;
-                let n = n.map(|c| u32::try_from(c).ok());
-                let n = [n[0]?, n[1]?, n[2]?];
-                field
-                    .map
-                    .get(&brick_key(n))
-                    .map(|&x| field.block[x as usize])
-                    .filter(|&v| v != NONE)
-                    .map(|v| v as usize)
-            })
-        });
-        for (i, &f) in vals.iter().enumerate() {
-            if !unobserved_inside(f) {
-                continue;
-            }
-            let p = [(i & 7) as i64, ((i >> 3) & 7) as i64, (i >> 6) as i64];
-            // The value of the cell at local offset `q` (at most one step out of the brick,
-            // along one axis: a face neighbour's brick).
-            let value = |q: [i64; 3]| {
-                let mut nb = b;
-                for (a, c) in q.iter().enumerate() {
-                    if !(0..8).contains(c) {
-                        match faces[a][usize::from(*c > 0)] {
-                            Some(n) => nb = n,
-                            None => return f32::INFINITY,
-                        }
-                    }
-                }
-                let q = q.map(|c| (c & 7) as u32);
-                field.vals[nb * 512 + local(q[0], q[1], q[2])]
-            };
-            let between = (0..3).any(|axis| {
-                [-1, 1].into_iter().any(|sign| {
-                    let (mut out, mut back) = (p, p);
-                    out[axis] += sign;
-                    back[axis] -= sign;
-                    !below_floor([0, base[1] + out[1], 0])
-                        && value(out) == f32::INFINITY
-                        && observed(value(back))
-                })
-            });
-            if between {
-                peeled.push([base[0] + p[0], base[1] + p[1], base[2] + p[2]]);
-            }
-        }
-    };
-    par::extend_in_order(&mut peeled, keys.len(), PEEL_BRICKS_PER_TASK, scan);
+    par::extend_in_order(&mut peeled, keys.len(), PEEL_BRICKS_PER_TASK, |b, out| {
+        peel_in_brick(shared, b, keys[b], floor, out);
+    });
     for &g in &peeled {
         if let Some(i) = field.slot(g) {
             field.vals[i] = f32::INFINITY;
@@ -432,6 +369,72 @@ fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_pie
                     field.vals[i] = f32::INFINITY;
                 }
             }
+        }
+    }
+}
+
+/// The cells of brick `b` (key `k`) that [`peel_unobserved`] turns outside, appended to
+/// `peeled` in the brick's order.
+fn peel_in_brick(field: &Field<'_>, b: usize, k: [u32; 3], floor: u32, peeled: &mut Vec<[i64; 3]>) {
+    let below_floor = |g: [i64; 3]| g[1] < i64::from(floor);
+    // A brick without a block of values holds no cell.
+    let Some(b) = field.block.get(b).copied().filter(|&v| v != NONE) else {
+        return;
+    };
+    let b = b as usize;
+    let vals = &field.vals[b * 512..(b + 1) * 512];
+    // Only unobserved inside cells can be peeled.
+    if !vals.iter().any(|&f| unobserved_inside(f)) {
+        return;
+    }
+    let base = [0, 1, 2].map(|a| i64::from(k[a] * 8));
+    // The bricks across each face, `[axis][0: minus, 1: plus]`.
+    let faces: [[Option<usize>; 2]; 3] = std::array::from_fn(|a| {
+        [-1i64, 1].map(|d| {
+            let mut n = k.map(i64::from);
+            n[a] += d;
+            let n = n.map(|c| u32::try_from(c).ok());
+            let n = [n[0]?, n[1]?, n[2]?];
+            field
+                .map
+                .get(&brick_key(n))
+                .map(|&x| field.block[x as usize])
+                .filter(|&v| v != NONE)
+                .map(|v| v as usize)
+        })
+    });
+    for (i, &f) in vals.iter().enumerate() {
+        if !unobserved_inside(f) {
+            continue;
+        }
+        let p = [(i & 7) as i64, ((i >> 3) & 7) as i64, (i >> 6) as i64];
+        // The value of the cell at local offset `q` (at most one step out of the brick,
+        // along one axis: a face neighbour's brick).
+        let value = |q: [i64; 3]| {
+            let mut nb = b;
+            for (a, c) in q.iter().enumerate() {
+                if !(0..8).contains(c) {
+                    match faces[a][usize::from(*c > 0)] {
+                        Some(n) => nb = n,
+                        None => return f32::INFINITY,
+                    }
+                }
+            }
+            let q = q.map(|c| (c & 7) as u32);
+            field.vals[nb * 512 + local(q[0], q[1], q[2])]
+        };
+        let between = (0..3).any(|axis| {
+            [-1, 1].into_iter().any(|sign| {
+                let (mut out, mut back) = (p, p);
+                out[axis] += sign;
+                back[axis] -= sign;
+                !below_floor([0, base[1] + out[1], 0])
+                    && value(out) == f32::INFINITY
+                    && observed(value(back))
+            })
+        });
+        if between {
+            peeled.push([base[0] + p[0], base[1] + p[1], base[2] + p[2]]);
         }
     }
 }
