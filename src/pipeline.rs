@@ -26,7 +26,9 @@ use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplified, Simplify, Sim
 use crate::par;
 
 use voxoct_depth::carve::{CarveView, Seen, visibility};
-use voxoct_mesh::closure::{CLOSED_HITS, CLOSED_SDF, close_cells, closure_box};
+use voxoct_mesh::closure::{
+    CLOSED_HITS, CLOSED_SDF, ClosedSurface, Sight, close_cells, closure_box,
+};
 
 /// The frames of one snapshot and the turntable angle they were taken at.
 #[derive(Debug, Clone, PartialEq)]
@@ -327,6 +329,11 @@ pub struct Reconstruction {
     /// when not measured or not measurable (too few points, one snapshot). Compare it with
     /// [`disagreement_explained_m`].
     pub disagreement_m: Option<f32>,
+    /// The closed solid's surface, in faces of cells, and how much of it no view saw (the
+    /// closure invented it: the back of walls seen from one side, the base on the platform,
+    /// caps over unseen openings); counted on the closure's cells before marching, in leaf
+    /// faces. `None` when nothing was closed ([`Params::carve`] off, or not solid).
+    pub closed_surface: Option<ClosedSurface>,
     /// Whether the mesh stage proved the mesh free of self-intersections
     /// ([`voxoct_mesh::mesh_cells_simplified`]: the smoothing's untangling ran the exact test
     /// over every triangle and dropping small pieces and simplifying keep it, or, for a mesh
@@ -425,7 +432,7 @@ pub fn reconstruct(
 
     on_stage(Stage::Mesh);
     let t = Instant::now();
-    let (meshed, disagreement_m) =
+    let (meshed, disagreement_m, closed_surface) =
         mesh_tree(config, params, &tree, filtered, &angles, &mut timings)?;
     timings.mesh = t.elapsed();
 
@@ -435,6 +442,7 @@ pub fn reconstruct(
         triangles_in,
         timings,
         disagreement_m,
+        closed_surface,
         self_intersection_free: meshed.certified,
         marched_triangles: meshed.marched_triangles,
         simplify: meshed.simplify,
@@ -549,7 +557,7 @@ fn mesh_tree(
     filtered: Vec<DepthFrame>,
     angles: &[f32],
     timings: &mut Timings,
-) -> Result<(Simplified, Option<f32>), PipelineError> {
+) -> Result<(Simplified, Option<f32>, Option<ClosedSurface>), PipelineError> {
     // `Params::validate` refused a `lod` beyond the depth of this root and leaf.
     let depth = tree.depth() - params.lod;
     let options = mesh_options(config, params);
@@ -558,20 +566,21 @@ fn mesh_tree(
     let t = Instant::now();
     // The closure's minimum cut is serial: the agreement check (serial too) takes the other
     // core meanwhile.
-    let (cells, (disagreement_m, agreement)) = par::join(
+    let ((cells, closed_surface), (disagreement_m, agreement)) = par::join(
         || {
             if params.carve && options.solid {
                 let views = (filtered.as_slice(), angles);
-                close_unseen_in_budget(
+                let (cells, surface) = close_unseen_in_budget(
                     config,
                     &options,
                     (tree, depth),
                     cells,
                     views,
                     CLOSURE_BUDGET_CELLS,
-                )
+                );
+                (cells, surface)
             } else {
-                cells
+                (cells, None)
             }
         },
         || {
@@ -599,7 +608,7 @@ fn mesh_tree(
     timings.march = out.times.march;
     timings.smooth = out.times.smooth;
     timings.simplify = out.times.simplify;
-    Ok((out, disagreement_m))
+    Ok((out, disagreement_m, closed_surface))
 }
 
 /// The meshing options of `params` for a scan with `config`: in solid mode with
@@ -639,18 +648,18 @@ fn close_unseen_in_budget(
     cells: Vec<Cell>,
     (filtered, angles): (&[DepthFrame], &[f32]),
     budget: u64,
-) -> Vec<Cell> {
+) -> (Vec<Cell>, Option<ClosedSurface>) {
     let grid = tree.grid(depth);
     let floor = closure_floor(options, &grid);
     let Some((lo, hi)) = closure_box(&cells, &grid, floor) else {
-        return cells;
+        return (cells, None);
     };
     let volume = |lo: UVec3, hi: UVec3| {
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
         d.x * d.y * d.z
     };
     if volume(lo, hi) <= budget {
-        return close_unseen(
+        let (cells, surface) = close_unseen(
             config,
             &grid,
             cells,
@@ -659,6 +668,7 @@ fn close_unseen_in_budget(
             (filtered, angles),
             options.min_hits,
         );
+        return (cells, Some(surface));
     }
     // The finest coarser grid whose box fits (its box holds the fine one's cells).
     let mut k = 1;
@@ -670,9 +680,9 @@ fn close_unseen_in_budget(
     let known = coarse.len();
     let coarse_floor = closure_floor(options, &coarse_grid);
     let Some(coarse_box) = closure_box(&coarse, &coarse_grid, coarse_floor) else {
-        return cells;
+        return (cells, None);
     };
-    let closed = close_unseen(
+    let (closed, coarse_surface) = close_unseen(
         config,
         &coarse_grid,
         coarse,
@@ -702,7 +712,13 @@ fn close_unseen_in_budget(
             }
         }
     }
-    cells
+    // A coarse cell's face is 4^k faces of the leaves.
+    let leaf_faces = 1u64 << (2 * k);
+    let surface = ClosedSurface {
+        faces: coarse_surface.faces * leaf_faces,
+        invented: coarse_surface.invented * leaf_faces,
+    };
+    (cells, Some(surface))
 }
 
 /// The layer below which [`close_unseen`] excludes cells (the floor's, else none).
@@ -725,7 +741,7 @@ fn close_unseen(
     floor: u32,
     (filtered, angles): (&[DepthFrame], &[f32]),
     min_hits: u32,
-) -> Vec<Cell> {
+) -> (Vec<Cell>, ClosedSurface) {
     let views: Vec<CarveView<'_>> = filtered
         .iter()
         .zip(angles)
@@ -751,7 +767,12 @@ fn close_unseen(
     // observation: one margin.
     close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, |c| {
         let d = c - lo;
-        seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] == Seen::Empty
+        match seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] {
+            Seen::Empty => Sight::Empty,
+            Seen::Surface => Sight::Surface,
+            Seen::BehindSurface => Sight::BehindSurface,
+            Seen::Unseen => Sight::Unseen,
+        }
     })
 }
 
@@ -862,7 +883,7 @@ mod tests {
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
         let solid = |budget: u64| {
             let views = (filtered.as_slice(), angles.as_slice());
-            let cells = close_unseen_in_budget(
+            let (cells, surface) = close_unseen_in_budget(
                 &config,
                 &options,
                 (&tree, depth),
@@ -872,15 +893,22 @@ mod tests {
             );
             let (mesh, _) = voxoct_mesh::mesh_cells_certified(&cells, &grid, &options).unwrap();
             mesh.check_closed_manifold().unwrap();
-            (cells.len(), mesh.volume())
+            let unseen = surface.and_then(|s| s.invented_share()).unwrap();
+            (cells.len(), mesh.volume(), unseen)
         };
-        let (fine_cells, fine) = solid(u64::MAX);
+        let (fine_cells, fine, fine_unseen) = solid(u64::MAX);
         // Between an eighth and the whole box: one level coarser.
-        let (coarse_cells, coarse) = solid(d.x * d.y * d.z / 4);
+        let (coarse_cells, coarse, coarse_unseen) = solid(d.x * d.y * d.z / 4);
         assert_ne!(fine_cells, coarse_cells, "the coarse closure ran");
         assert!(
             fine > 0.0 && (coarse - fine).abs() < 0.05 * fine,
             "{coarse} vs {fine}"
+        );
+        // The coarse count, in leaf faces, is near the fine one: some of the surface no view
+        // saw, never all of it.
+        assert!(
+            fine_unseen > 0.0 && fine_unseen < 0.5 && (coarse_unseen - fine_unseen).abs() < 0.05,
+            "unseen share {coarse_unseen} (coarse) vs {fine_unseen}"
         );
     }
 }

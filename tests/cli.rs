@@ -52,6 +52,7 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
         "simplification",
         "mesh_vertices",
         "mesh_genus",
+        "unseen_surface_share",
         "closed_manifold",
         "peak_rss_bytes",
     ] {
@@ -95,6 +96,10 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
     assert_eq!(stats["closed_manifold"], true);
     // A closed mesh has a genus (null only for an open one).
     assert!(stats["mesh_genus"].as_u64().is_some(), "{stats}");
+    // The closure ran (solid by default): some of the surface no view saw (at least the
+    // base on the platform), never all of it.
+    let unseen = stats["unseen_surface_share"].as_f64().expect("a share");
+    assert!(unseen > 0.0 && unseen < 1.0, "{stats}");
     assert_eq!(stats["snapshots"], 4);
     // mm by default: a 12 cm sphere is ~120 units wide.
     let soup = voxoct::stl::read_file(dir.path().join("s.stl")).unwrap();

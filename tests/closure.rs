@@ -18,14 +18,15 @@ fn simulate(model: &str, n: u32) -> (ScannerConfig, Vec<SnapshotFrames>) {
     simulate_scan(&mut kinect, n, 2).expect("simulated scan")
 }
 
-fn volume_ratio(model: &str, leaf: f32) -> (f64, voxoct::mesh::Mesh) {
+fn volume_ratio(model: &str, leaf: f32) -> (f64, voxoct::mesh::Mesh, f64) {
     let m = Model::builtin(model).expect("built-in model");
     model_volume_ratio(model, &m, leaf)
 }
 
 /// Reconstructs a simulated 8-snapshot scan of `model` (default options at `leaf`); the
-/// mesh (asserted closed) and its volume over the model's.
-fn model_volume_ratio(name: &str, model: &Model, leaf: f32) -> (f64, voxoct::mesh::Mesh) {
+/// mesh (asserted closed), its volume over the model's, and the share of its surface that no
+/// view saw.
+fn model_volume_ratio(name: &str, model: &Model, leaf: f32) -> (f64, voxoct::mesh::Mesh, f64) {
     let sim = SimConfig {
         seed: 11,
         ..SimConfig::default()
@@ -42,7 +43,11 @@ fn model_volume_ratio(name: &str, model: &Model, leaf: f32) -> (f64, voxoct::mes
         .check_closed_manifold()
         .unwrap_or_else(|e| panic!("{name}: not closed: {e}"));
     let want = f64::from(model.signed_volume());
-    (r.mesh.stats().volume / want, r.mesh)
+    let unseen = r
+        .closed_surface
+        .and_then(|c| c.invented_share())
+        .unwrap_or_else(|| panic!("{name}: the closure reports no surface"));
+    (r.mesh.stats().volume / want, r.mesh, unseen)
 }
 
 /// An upright ring: its hole is seen through from most views and stays open (filling it
@@ -50,7 +55,7 @@ fn model_volume_ratio(name: &str, model: &Model, leaf: f32) -> (f64, voxoct::mes
 /// no view sees, is closed by a small cap: one piece, volume within 5 % of the ring's.
 #[test]
 fn a_ring_on_its_rim_keeps_its_hole_open() {
-    let (ratio, mesh) = volume_ratio("torus", 0.0015);
+    let (ratio, mesh, _) = volume_ratio("torus", 0.0015);
     assert!((ratio - 1.0).abs() < 0.05, "volume ratio {ratio}");
     assert_eq!(mesh.stats().components, 1);
 }
@@ -62,7 +67,7 @@ fn a_ring_on_its_rim_keeps_its_hole_open() {
 #[test]
 fn a_ring_keeps_its_base_at_half_a_millimetre() {
     let leaf = 0.0005;
-    let (ratio, mesh) = volume_ratio("torus", leaf);
+    let (ratio, mesh, _) = volume_ratio("torus", leaf);
     assert!((ratio - 1.0).abs() < 0.05, "volume ratio {ratio}");
     let stats = mesh.stats();
     assert_eq!(stats.components, 1);
@@ -98,7 +103,9 @@ fn cuboid(lo: Vec3, hi: Vec3) -> Vec<Triangle> {
 /// A cup no view sees the bottom of: 78 mm wide inside, 92 mm deep; from 20° above, the
 /// views see its inner wall only down to about 30 mm below the rim. Its inside stays open
 /// (filled, the mesh would have 2.6 times the cup's volume) and the mesh is one closed
-/// piece.
+/// piece. The reconstruction says how much of its surface no view saw: the inner wall the
+/// closure put behind the observed outer one, about a third (a closed sphere: its base, a
+/// few percent).
 ///
 /// Where no view saw the inner wall, the closure puts it along the observed outer wall (the
 /// wall it keeps is the observed surface's thickness, one or two leaves, not the cup's
@@ -106,9 +113,15 @@ fn cuboid(lo: Vec3, hi: Vec3) -> Vec<Triangle> {
 /// observed wall's thickness would bring it to the model's.
 #[test]
 fn a_cup_keeps_its_inside_open() {
-    let (ratio, mesh) = volume_ratio("mug", 0.0015);
+    let (ratio, mesh, unseen) = volume_ratio("mug", 0.0015);
     assert!(ratio > 0.2 && ratio < 1.05, "volume ratio {ratio}");
     assert_eq!(mesh.stats().components, 1);
+    assert!(unseen > 0.2 && unseen < 0.5, "unseen share {unseen}");
+    let (_, _, sphere) = volume_ratio("sphere", 0.0015);
+    assert!(
+        sphere > 0.0 && sphere < 0.12,
+        "sphere: unseen share {sphere}"
+    );
 }
 
 /// A block with a square hole through it (70 × 50 × 20 mm, hole 40 × 25 mm, 10 mm above
@@ -127,7 +140,7 @@ fn a_block_keeps_its_through_hole() {
         tris.extend(cuboid(lo, hi));
     }
     let model = Model::from_triangles(&tris);
-    let (ratio, mesh) = model_volume_ratio("block with a hole", &model, 0.001);
+    let (ratio, mesh, _) = model_volume_ratio("block with a hole", &model, 0.001);
     assert!((ratio - 1.0).abs() < 0.05, "volume ratio {ratio}");
     assert_eq!(mesh.stats().components, 1);
 }
@@ -139,7 +152,7 @@ fn a_block_keeps_its_through_hole() {
 #[test]
 fn built_in_models_keep_their_volume() {
     for model in ["box", "figurine", "sphere", "cylinder"] {
-        let (ratio, mesh) = volume_ratio(model, 0.0015);
+        let (ratio, mesh, _) = volume_ratio(model, 0.0015);
         assert!((ratio - 1.0).abs() < 0.05, "{model}: volume ratio {ratio}");
         assert_eq!(mesh.stats().components, 1, "{model}");
     }

@@ -116,6 +116,9 @@ pub struct Stats {
     /// Handles (tunnels) summed over the components when closed (null otherwise): 0 for
     /// each solid without a hole through it.
     pub mesh_genus: Option<usize>,
+    /// Share of the closed solid's surface that no view saw, which the closure invented
+    /// (leaf faces of the closure's cells, before marching; null when nothing was closed).
+    pub unseen_surface_share: Option<f64>,
     pub mesh_volume_m3: f64,
     pub mesh_area_m2: f64,
     pub closed_manifold: bool,
@@ -191,6 +194,7 @@ impl Stats {
             mesh_vertices: mesh.vertices.len(),
             mesh_components: mstats.components,
             mesh_genus: mstats.genus().filter(|_| closed),
+            unseen_surface_share: r.closed_surface.and_then(|c| c.invented_share()),
             mesh_volume_m3: mstats.volume,
             mesh_area_m2: mstats.area,
             closed_manifold: closed,
@@ -238,6 +242,12 @@ pub fn summary(s: &Stats, out: &std::path::Path, file: &MeshFile) {
         out.display(),
         file.describe()
     );
+    if let Some(share) = s.unseen_surface_share {
+        eprintln!(
+            "surface no view saw: {:.0} % (closed with the smallest surface next to what was seen)",
+            share * 100.0
+        );
+    }
 }
 
 /// Why the mesh came out empty, from what the run saw.

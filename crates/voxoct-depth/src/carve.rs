@@ -36,7 +36,10 @@ pub struct CarveView<'a> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum ViewSees {
     Front,
+    /// Within the margin, on the camera's side of the reading (or at it).
     Near,
+    /// Within the margin, beyond the reading.
+    NearBehind,
     Behind,
     Unknown,
 }
@@ -46,8 +49,12 @@ enum ViewSees {
 pub enum Seen {
     /// Some view sees the cell in front of its reading: empty space.
     Empty,
-    /// No view sees it empty, some view sees it on its surface (within the margin).
+    /// No view sees it empty, some view sees it on its surface: within the margin of a
+    /// reading, on the camera's side of it (or at it).
     Surface,
+    /// No view sees it empty or on the camera's side of a reading, some view sees it within
+    /// the margin beyond a reading: just behind an observed surface.
+    BehindSurface,
     /// No view sees it in front of or on its surface: it is behind every reading that covers
     /// it, or covered by none.
     Unseen,
@@ -89,8 +96,10 @@ impl CarveView<'_> {
             ViewSees::Front
         } else if z > d + margin {
             ViewSees::Behind
-        } else {
+        } else if z <= d {
             ViewSees::Near
+        } else {
+            ViewSees::NearBehind
         }
     }
 }
@@ -391,6 +400,7 @@ fn classify_cells(
                     continue;
                 }
                 let mut near = false;
+                let mut near_behind = false;
                 let mut front = false;
                 if !plan.mixed.is_empty() {
                     let p = grid.cell_center(c);
@@ -401,6 +411,7 @@ fn classify_cells(
                                 break;
                             }
                             ViewSees::Near => near = true,
+                            ViewSees::NearBehind => near_behind = true,
                             ViewSees::Behind | ViewSees::Unknown => {}
                         }
                     }
@@ -409,6 +420,8 @@ fn classify_cells(
                     Seen::Empty
                 } else if near {
                     Seen::Surface
+                } else if near_behind {
+                    Seen::BehindSurface
                 } else {
                     Seen::Unseen
                 });
@@ -522,6 +535,8 @@ mod tests {
                         Seen::Empty
                     } else if seen.contains(&ViewSees::Near) {
                         Seen::Surface
+                    } else if seen.contains(&ViewSees::NearBehind) {
+                        Seen::BehindSurface
                     } else {
                         Seen::Unseen
                     });
@@ -597,7 +612,12 @@ mod tests {
         }
         assert_eq!(kinds.len(), 5, "{kinds:?}");
         let count = |k: Seen| want.iter().filter(|&&s| s == k).count();
-        for k in [Seen::Empty, Seen::Surface, Seen::Unseen] {
+        for k in [
+            Seen::Empty,
+            Seen::Surface,
+            Seen::BehindSurface,
+            Seen::Unseen,
+        ] {
             assert!(count(k) > 100, "{} cells {k:?}", count(k));
         }
         let got = visibility(&views, &grid, lo, hi, 0.004);

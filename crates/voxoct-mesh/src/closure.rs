@@ -69,12 +69,18 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 ///
 /// In the box, a marked cell with at least `min_hits` hits is solid when its mean signed
 /// distance is not positive, and empty otherwise (its centre is outside the seen surface); an
-/// unmarked cell is empty when `seen_empty` says so of its coordinates, and unknown otherwise.
+/// unmarked cell is empty when `seen` says [`Sight::Empty`] of its coordinates, and unknown
+/// otherwise.
 /// Cells below the layer `floor` are excluded, and the box's faces border empty space. A
 /// face of the cut costs `1 + d / prior_cells` ([`close_unknown_weighted`]), `d` its
 /// distance in cells from the nearest marked cell; the floor (the platform) costs 1.
 /// `prior_cells` not finite or not positive: every face costs the same (the smallest
 /// surface).
+///
+/// Also returns how much of the closed solid's surface no view saw ([`ClosedSurface`], in
+/// faces of cells of the box): the back of surfaces seen from one side, the faces of the
+/// cells the cut added, the base on the platform. This is what the closure invented; it is
+/// counted on the cells, before marching.
 #[must_use]
 pub fn close_cells(
     cells: Vec<Cell>,
@@ -82,10 +88,10 @@ pub fn close_cells(
     floor: u32,
     min_hits: u32,
     prior_cells: f32,
-    seen_empty: impl Fn(UVec3) -> bool + Sync,
-) -> Vec<Cell> {
+    seen: impl Fn(UVec3) -> Sight + Sync,
+) -> (Vec<Cell>, ClosedSurface) {
     if lo.cmpgt(hi).any() {
-        return cells;
+        return (cells, ClosedSurface::default());
     }
     let dim = hi - lo + UVec3::ONE;
     let dims = [dim.x as usize, dim.y as usize, dim.z as usize];
@@ -111,7 +117,7 @@ pub fn close_cells(
                 for (dx, k) in row.iter_mut().enumerate() {
                     *k = if y < floor {
                         Known::Excluded
-                    } else if seen_empty(UVec3::new(lo.x + dx as u32, y, z)) {
+                    } else if seen(UVec3::new(lo.x + dx as u32, y, z)) == Sight::Empty {
                         Known::Empty
                     } else {
                         Known::Unknown
@@ -136,6 +142,14 @@ pub fn close_cells(
         || face_costs(dims, &marked, prior_cells),
     );
     let inside = close_coarse(dims, &known, &cost, coarse_levels(prior_cells));
+    let surface = surface_faces(dims, &inside, &known, &marked, |i| {
+        let c = UVec3::new(
+            (i % dims[0]) as u32,
+            ((i / dims[0]) % dims[1]) as u32,
+            (i / (dims[0] * dims[1])) as u32,
+        );
+        matches!(seen(lo + c), Sight::Empty | Sight::Surface)
+    });
     // Unknown cells the cut put inside, and those sealed behind a surface (`inside` is false
     // for empty and excluded cells).
     let mut added = Vec::new();
@@ -160,7 +174,137 @@ pub fn close_cells(
             i += dims[0];
         }
     }
-    cells
+    (cells, surface)
+}
+
+/// What the views say of a cell, for [`close_cells`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sight {
+    /// Some view sees it in front of its reading: empty space.
+    Empty,
+    /// No view sees it empty, some view sees it on a surface: within the noise of a
+    /// reading, on the camera's side of it.
+    Surface,
+    /// Within the noise of a reading, but beyond it for every view that sees it so: just
+    /// behind an observed surface.
+    BehindSurface,
+    /// No view sees it in front of, on or just behind a surface.
+    Unseen,
+}
+
+/// The faces between the solid and the rest in a box, and how many of them no view saw.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ClosedSurface {
+    /// Faces of cells between a solid cell and one that is not.
+    pub faces: u64,
+    /// Of those, the faces that no view saw: the surface the closure invented.
+    pub invented: u64,
+}
+
+impl ClosedSurface {
+    /// The share of the faces that no view saw (`invented / faces`); `None` without faces.
+    #[must_use]
+    pub fn invented_share(&self) -> Option<f64> {
+        (self.faces > 0).then(|| self.invented as f64 / self.faces as f64)
+    }
+}
+
+/// [`ClosedSurface`] of `inside` (x fastest, `dims` cells), counted row by row in parallel;
+/// `front(i)`: whether some view saw cell `i` in front of or on its surface ([`Sight`]).
+///
+/// A face was seen when its outer cell is marked (the surface crosses a cell that triangles
+/// marked), or when its solid cell is marked and some view saw its outer cell in front of or
+/// on a surface. Every other face between the solid and the rest is invented: the back of an
+/// observed surface (its outer cell behind every reading), a face of a cell the closure
+/// added that no triangle marked, and the base on the platform (the box's bottom border and
+/// the cells below the floor). The box's other borders count as seen empty.
+fn surface_faces(
+    dims: [usize; 3],
+    inside: &[bool],
+    known: &[Known],
+    marked: &[bool],
+    front: impl Fn(usize) -> bool + Sync,
+) -> ClosedSurface {
+    let [nx, ny, nz] = dims;
+    let mut rows = vec![ClosedSurface::default(); ny * nz];
+    par::for_each_chunk_mut(&mut rows, 1, |r, out| {
+        let (y, z) = (r % ny, r / ny);
+        let base = r * nx;
+        let mut s = ClosedSurface::default();
+        // Beyond the box: the platform below, seen-empty space elsewhere.
+        #[derive(Clone, Copy)]
+        enum Beyond {
+            Empty,
+            Platform,
+        }
+        // A face between the solid and the rest (the caller checked that it is one).
+        let mut face = |a: usize, b: Result<usize, Beyond>| {
+            s.faces += 1;
+            let solid_a = inside[a];
+            let seen = match (solid_a, b) {
+                // The solid cell `a` and what lies beyond the box.
+                (_, Err(Beyond::Empty)) => marked[a],
+                (_, Err(Beyond::Platform)) => false,
+                (true, Ok(b)) => {
+                    marked[b] || (marked[a] && known[b] != Known::Excluded && front(b))
+                }
+                (false, Ok(b)) => {
+                    marked[a] || (marked[b] && known[a] != Known::Excluded && front(a))
+                }
+            };
+            if !seen {
+                s.invented += 1;
+            }
+        };
+        let row = &inside[base..base + nx];
+        // Each face once: towards +x, +y, +z (plain loops over the rows; faces are rare), and
+        // the solid's faces on the box's borders.
+        for (x, pair) in row.windows(2).enumerate() {
+            if pair[0] != pair[1] {
+                face(base + x, Ok(base + x + 1));
+            }
+        }
+        for (dy, dz, stride) in [(1, 0, nx), (0, 1, nx * ny)] {
+            if y + dy < ny && z + dz < nz {
+                let next = &inside[base + stride..base + stride + nx];
+                for (x, (&a, &b)) in row.iter().zip(next).enumerate() {
+                    if a != b {
+                        face(base + x, Ok(base + x + stride));
+                    }
+                }
+            } else {
+                for (x, &a) in row.iter().enumerate() {
+                    if a {
+                        face(base + x, Err(Beyond::Empty));
+                    }
+                }
+            }
+        }
+        for (x, &a) in row.iter().enumerate() {
+            if !a {
+                continue;
+            }
+            let i = base + x;
+            if x == 0 {
+                face(i, Err(Beyond::Empty));
+            }
+            if x + 1 == nx {
+                face(i, Err(Beyond::Empty));
+            }
+            if y == 0 {
+                face(i, Err(Beyond::Platform));
+            }
+            if z == 0 {
+                face(i, Err(Beyond::Empty));
+            }
+        }
+        out[0] = s;
+    });
+    rows.iter()
+        .fold(ClosedSurface::default(), |a, b| ClosedSurface {
+            faces: a.faces + b.faces,
+            invented: a.invented + b.invented,
+        })
 }
 
 /// Makes solid the unknown cell right behind an observed surface: where a marked cell whose
@@ -1345,5 +1489,114 @@ mod tests {
         for (lo, hi) in [(b.min.x, b.max.x), (b.min.y, b.max.y), (b.min.z, b.max.z)] {
             assert!((lo - 4.0).abs() < 1e-4 && (hi - 7.0).abs() < 1e-4, "{b:?}");
         }
+    }
+
+    /// [`surface_faces`] the plain way: every cell's six faces, each face once.
+    fn surface_reference(
+        dims: [usize; 3],
+        inside: &[bool],
+        known: &[Known],
+        marked: &[bool],
+        front: &[bool],
+    ) -> ClosedSurface {
+        let mut s = ClosedSurface::default();
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    let a = idx(dims, x, y, z);
+                    let c = [x as i64, y as i64, z as i64];
+                    for d in 0..6 {
+                        let mut n = c;
+                        n[d / 2] += if d % 2 == 0 { -1 } else { 1 };
+                        let beyond = n.iter().zip(dims).any(|(&v, len)| v < 0 || v >= len as i64);
+                        let b = (!beyond)
+                            .then(|| idx(dims, n[0] as usize, n[1] as usize, n[2] as usize));
+                        // Count a face from its solid side only (beyond the box is not solid).
+                        if !inside[a] || b.is_some_and(|b| inside[b]) {
+                            continue;
+                        }
+                        s.faces += 1;
+                        let seen = match b {
+                            None => d != 2 && marked[a],
+                            Some(b) => {
+                                marked[b] || (marked[a] && known[b] != Known::Excluded && front[b])
+                            }
+                        };
+                        s.invented += u64::from(!seen);
+                    }
+                }
+            }
+        }
+        s
+    }
+
+    proptest::proptest! {
+        /// The row-by-row count equals the plain one on random boxes.
+        #[test]
+        fn surface_faces_are_those_of_every_cell(
+            dims in proptest::array::uniform3(1usize..7),
+            seed in proptest::collection::vec(0u8..16, 7 * 7 * 7),
+        ) {
+            let n = dims[0] * dims[1] * dims[2];
+            let inside: Vec<bool> = seed[..n].iter().map(|&v| v & 1 == 1).collect();
+            let marked: Vec<bool> = seed[..n].iter().map(|&v| v & 2 == 2).collect();
+            let front: Vec<bool> = seed[..n].iter().map(|&v| v & 4 == 4).collect();
+            let known: Vec<Known> = seed[..n]
+                .iter()
+                .map(|&v| if v & 8 == 8 { Known::Excluded } else { Known::Unknown })
+                .collect();
+            let got = surface_faces(dims, &inside, &known, &marked, |i| front[i]);
+            proptest::prop_assert_eq!(got, surface_reference(dims, &inside, &known, &marked, &front));
+        }
+    }
+
+    /// A block of 3 × 3 × 3 solid cells standing on the box's floor: observed all round,
+    /// only its base on the platform is invented; added by the closure (no triangle marked
+    /// it), all of it is; observed, but with the cells beyond one side behind a surface (the
+    /// back of a wall), that side is invented too.
+    #[test]
+    fn the_surface_no_view_saw_is_the_base_the_added_cells_and_the_back_of_walls() {
+        let dims = [5, 4, 5];
+        let n = 100;
+        let block =
+            |x: usize, y: usize, z: usize| (1..4).contains(&x) && y < 3 && (1..4).contains(&z);
+        let mut inside = vec![false; n];
+        for z in 0..5 {
+            for y in 0..4 {
+                for x in 0..5 {
+                    inside[idx(dims, x, y, z)] = block(x, y, z);
+                }
+            }
+        }
+        let known = vec![Known::Unknown; n];
+        let all = |_: usize| true;
+        let seen = surface_faces(dims, &inside, &known, &inside, all);
+        assert_eq!(
+            seen,
+            ClosedSurface {
+                faces: 54,
+                invented: 9
+            }
+        );
+        assert_eq!(seen.invented_share(), Some(9.0 / 54.0));
+        let none = vec![false; n];
+        let added = surface_faces(dims, &inside, &known, &none, all);
+        assert_eq!(
+            added,
+            ClosedSurface {
+                faces: 54,
+                invented: 54
+            }
+        );
+        // Beyond the +x side (x = 4): just behind a surface, not in front of one.
+        let back = surface_faces(dims, &inside, &known, &inside, |i| i % 5 != 4);
+        assert_eq!(
+            back,
+            ClosedSurface {
+                faces: 54,
+                invented: 18
+            }
+        );
+        assert_eq!(ClosedSurface::default().invented_share(), None);
     }
 }
