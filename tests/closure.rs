@@ -124,6 +124,21 @@ fn a_cup_keeps_its_inside_open() {
     );
 }
 
+/// A narrow-necked vase (the built-in `vase`: a 90 mm body, a mouth 24 mm wide): from 20°
+/// above no view sees into its body, and the smallest surface that closes what no view saw
+/// is a lid across the neck, so the body comes out filled — closed, in one piece, with about
+/// the volume of its outer hull (over three times the vase's). This is a limit of the
+/// closure's prior, measured here so that a change of it shows: a closure that keeps such a
+/// body open fails this test and should change it (and the README's limits).
+#[test]
+fn a_narrow_necked_vase_is_closed_across_its_neck() {
+    let (ratio, mesh, unseen) = volume_ratio("vase", 0.0015);
+    assert!(ratio > 2.5 && ratio < 4.0, "volume ratio {ratio}");
+    assert_eq!(mesh.stats().components, 1);
+    // The lid and the base are all that no view saw.
+    assert!(unseen < 0.2, "unseen share {unseen}");
+}
+
 /// A block with a square hole through it (70 × 50 × 20 mm, hole 40 × 25 mm, 10 mm above
 /// the platform): the views through the hole see it empty, so it stays open (filling it
 /// would add 40 % to the volume), and the block keeps its volume.

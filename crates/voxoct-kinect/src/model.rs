@@ -25,8 +25,9 @@ pub struct Model {
 
 impl Model {
     /// Names accepted by [`Model::builtin`], the default first.
-    pub const BUILTIN_NAMES: &'static [&'static str] =
-        &["figurine", "mug", "sphere", "torus", "box", "cylinder"];
+    pub const BUILTIN_NAMES: &'static [&'static str] = &[
+        "figurine", "mug", "vase", "sphere", "torus", "box", "cylinder",
+    ];
 
     /// A procedural closed model standing on the platform (min y = 0, centred on the axis,
     /// 10–15 cm tall, inside a 0.3 m wide clip box); `None` for an unknown name (see
@@ -36,6 +37,9 @@ impl Model {
     ///   small head on the ball (overlapping closed components), 13.2 cm tall.
     /// - `mug`: a cup with a hollow (one closed surface of revolution: outer wall, rim, inner
     ///   wall, inner floor) and a torus handle that crosses the wall, 10 cm tall.
+    /// - `vase`: a narrow-necked vase with a hollow (one closed surface of revolution: a
+    ///   90 mm body, a neck whose mouth is 24 mm wide, 6 mm walls and floor), 13 cm tall. From
+    ///   the usual rig no view sees into its body.
     /// - `sphere`: radius 6 cm. `torus`: standing upright, major radius 5 cm, tube 2 cm.
     /// - `box`: 8 × 12 × 6 cm. `cylinder`: radius 4 cm, 12 cm tall.
     #[must_use]
@@ -71,6 +75,24 @@ impl Model {
                 m.append(&handle);
                 m
             }
+            "vase" => lathe(
+                &[
+                    (0.0, 0.0),
+                    (0.030, 0.0),
+                    (0.045, 0.040),
+                    (0.045, 0.070),
+                    (0.018, 0.110),
+                    (0.018, 0.130),
+                    (0.012, 0.130),
+                    (0.012, 0.112),
+                    (0.039, 0.072),
+                    (0.039, 0.042),
+                    (0.026, 0.006),
+                    (0.0, 0.006),
+                ],
+                96,
+                0.0,
+            ),
             "sphere" => sphere(0.06, 64, 32).translated(Vec3::new(0.0, 0.06, 0.0)),
             "torus" => torus(0.05, 0.02, 96, 32)
                 .rotated(Mat3::from_rotation_x(std::f32::consts::FRAC_PI_2))
