@@ -25,10 +25,8 @@ use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplified, Simplify, Sim
 
 use crate::par;
 
-use voxoct_depth::carve::{CarveView, Seen, visibility};
-use voxoct_mesh::closure::{
-    CLOSED_HITS, CLOSED_SDF, ClosedSurface, Sight, close_cells, closure_box,
-};
+use voxoct_depth::carve::{CarveView, visibility};
+use voxoct_mesh::closure::{CLOSED_HITS, CLOSED_SDF, ClosedSurface, close_cells, closure_box};
 
 /// The frames of one snapshot and the turntable angle they were taken at.
 #[derive(Debug, Clone, PartialEq)]
@@ -570,15 +568,14 @@ fn mesh_tree(
         || {
             if params.carve && options.solid {
                 let views = (filtered.as_slice(), angles);
-                let (cells, surface) = close_unseen_in_budget(
+                close_unseen_in_budget(
                     config,
                     &options,
                     (tree, depth),
                     cells,
                     views,
                     CLOSURE_BUDGET_CELLS,
-                );
-                (cells, surface)
+                )
             } else {
                 (cells, None)
             }
@@ -762,18 +759,9 @@ fn close_unseen(
     let distance = centre.distance(camera);
     let margin = 2.0 * kinect_v1_sigma(distance) + 0.87 * grid.cell;
     let seen = visibility(&views, grid, lo, hi, margin);
-    let dim = hi - lo + UVec3::ONE;
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.
-    close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, |c| {
-        let d = c - lo;
-        match seen[((d.z * dim.y + d.y) * dim.x + d.x) as usize] {
-            Seen::Empty => Sight::Empty,
-            Seen::Surface => Sight::Surface,
-            Seen::BehindSurface => Sight::BehindSurface,
-            Seen::Unseen => Sight::Unseen,
-        }
-    })
+    close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, &seen)
 }
 
 /// The snapshots of a recorded scan, ready for [`reconstruct`], with its scanner settings.

@@ -200,6 +200,24 @@ impl GridSpec {
     }
 }
 
+/// What the depth views together say of a cell: the verdict of
+/// `voxoct_depth::carve::visibility`, which the closure of unseen space
+/// (`voxoct_mesh::closure`) reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Seen {
+    /// Some view sees the cell in front of its reading: empty space.
+    Empty,
+    /// No view sees it empty, some view sees it on its surface: within the margin of a
+    /// reading, on the camera's side of it (or at it).
+    Surface,
+    /// No view sees it empty or on the camera's side of a reading, some view sees it within
+    /// the margin beyond a reading: just behind an observed surface.
+    BehindSurface,
+    /// No view sees it in front of or on its surface: it is behind every reading that covers
+    /// it, or covered by none.
+    Unseen,
+}
+
 /// One marked cell of an octree at some depth, with what the insertions left in it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cell {

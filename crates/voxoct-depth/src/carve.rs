@@ -45,20 +45,7 @@ enum ViewSees {
 }
 
 /// What all views together say of a cell ([`visibility`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Seen {
-    /// Some view sees the cell in front of its reading: empty space.
-    Empty,
-    /// No view sees it empty, some view sees it on its surface: within the margin of a
-    /// reading, on the camera's side of it (or at it).
-    Surface,
-    /// No view sees it empty or on the camera's side of a reading, some view sees it within
-    /// the margin beyond a reading: just behind an observed surface.
-    BehindSurface,
-    /// No view sees it in front of or on its surface: it is behind every reading that covers
-    /// it, or covered by none.
-    Unseen,
-}
+pub use voxoct_core::Seen;
 
 /// `x.round()` (half away from zero) as an index when it lies in `0..len`, without a libm
 /// call (the baseline x86-64 target has no rounding instruction) and with one-instruction

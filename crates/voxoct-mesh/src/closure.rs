@@ -32,7 +32,7 @@
 use std::collections::VecDeque;
 
 use voxoct_core::glam::UVec3;
-use voxoct_core::{Cell, GridSpec};
+use voxoct_core::{Cell, GridSpec, Seen};
 
 use crate::par;
 
@@ -69,7 +69,8 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 ///
 /// In the box, a marked cell with at least `min_hits` hits is solid when its mean signed
 /// distance is not positive, and empty otherwise (its centre is outside the seen surface); an
-/// unmarked cell is empty when `seen` says [`Sight::Empty`] of its coordinates, and unknown
+/// unmarked cell is empty when the views saw it so (`seen`: their verdict on every cell of
+/// the box, x fastest, as `voxoct_depth::carve::visibility` gives it), and unknown
 /// otherwise.
 /// Cells below the layer `floor` are excluded, and the box's faces border empty space. A
 /// face of the cut costs `1 + d / prior_cells` ([`close_unknown_weighted`]), `d` its
@@ -81,6 +82,9 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 /// faces of cells of the box): the back of surfaces seen from one side, the faces of the
 /// cells the cut added, the base on the platform. This is what the closure invented; it is
 /// counted on the cells, before marching.
+///
+/// # Panics
+/// If `seen` does not hold one verdict for every cell of the box.
 #[must_use]
 pub fn close_cells(
     cells: Vec<Cell>,
@@ -88,7 +92,7 @@ pub fn close_cells(
     floor: u32,
     min_hits: u32,
     prior_cells: f32,
-    seen: impl Fn(UVec3) -> Sight + Sync,
+    seen: &[Seen],
 ) -> (Vec<Cell>, ClosedSurface) {
     if lo.cmpgt(hi).any() {
         return (cells, ClosedSurface::default());
@@ -100,6 +104,7 @@ pub fn close_cells(
         (d.z as usize * dims[1] + d.y as usize) * dims[0] + d.x as usize
     };
     let n = dims[0] * dims[1] * dims[2];
+    assert_eq!(seen.len(), n, "one verdict per cell of the box");
     // The marked cells: enough hits, in the box.
     let counted =
         |c: &Cell| c.hits >= min_hits.max(1) && c.coord.cmpge(lo).all() && c.coord.cmple(hi).all();
@@ -113,11 +118,12 @@ pub fn close_cells(
             let mut known = vec![Known::Unknown; n];
             // Row by row (x fastest): row `r` is `(y, z) = (r % dims[1], r / dims[1])`.
             par::for_each_chunk_mut(&mut known, dims[0], |r, row| {
-                let (y, z) = (lo.y + (r % dims[1]) as u32, lo.z + (r / dims[1]) as u32);
-                for (dx, k) in row.iter_mut().enumerate() {
+                let y = lo.y + (r % dims[1]) as u32;
+                let seen = &seen[r * dims[0]..(r + 1) * dims[0]];
+                for (k, &s) in row.iter_mut().zip(seen) {
                     *k = if y < floor {
                         Known::Excluded
-                    } else if seen(UVec3::new(lo.x + dx as u32, y, z)) == Sight::Empty {
+                    } else if s == Seen::Empty {
                         Known::Empty
                     } else {
                         Known::Unknown
@@ -142,14 +148,7 @@ pub fn close_cells(
         || face_costs(dims, &marked, prior_cells),
     );
     let inside = close_coarse(dims, &known, &cost, coarse_levels(prior_cells));
-    let surface = surface_faces(dims, &inside, &known, &marked, |i| {
-        let c = UVec3::new(
-            (i % dims[0]) as u32,
-            ((i / dims[0]) % dims[1]) as u32,
-            (i / (dims[0] * dims[1])) as u32,
-        );
-        matches!(seen(lo + c), Sight::Empty | Sight::Surface)
-    });
+    let surface = surface_faces(dims, &inside, &known, &marked, seen);
     // Unknown cells the cut put inside, and those sealed behind a surface (`inside` is false
     // for empty and excluded cells).
     let mut added = Vec::new();
@@ -177,21 +176,6 @@ pub fn close_cells(
     (cells, surface)
 }
 
-/// What the views say of a cell, for [`close_cells`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Sight {
-    /// Some view sees it in front of its reading: empty space.
-    Empty,
-    /// No view sees it empty, some view sees it on a surface: within the noise of a
-    /// reading, on the camera's side of it.
-    Surface,
-    /// Within the noise of a reading, but beyond it for every view that sees it so: just
-    /// behind an observed surface.
-    BehindSurface,
-    /// No view sees it in front of, on or just behind a surface.
-    Unseen,
-}
-
 /// The faces between the solid and the rest in a box, and how many of them no view saw.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ClosedSurface {
@@ -209,8 +193,8 @@ impl ClosedSurface {
     }
 }
 
-/// [`ClosedSurface`] of `inside` (x fastest, `dims` cells), counted row by row in parallel;
-/// `front(i)`: whether some view saw cell `i` in front of or on its surface ([`Sight`]).
+/// [`ClosedSurface`] of `inside` (x fastest, `dims` cells, `seen` the views' verdicts in the
+/// same order), counted row by row in parallel.
 ///
 /// A face was seen when its outer cell is marked (the surface crosses a cell that triangles
 /// marked), or when its solid cell is marked and some view saw its outer cell in front of or
@@ -223,7 +207,7 @@ fn surface_faces(
     inside: &[bool],
     known: &[Known],
     marked: &[bool],
-    front: impl Fn(usize) -> bool + Sync,
+    seen: &[Seen],
 ) -> ClosedSurface {
     let [nx, ny, nz] = dims;
     let mut rows = vec![ClosedSurface::default(); ny * nz];
@@ -240,19 +224,19 @@ fn surface_faces(
         // A face between the solid and the rest (the caller checked that it is one).
         let mut face = |a: usize, b: Result<usize, Beyond>| {
             s.faces += 1;
-            let solid_a = inside[a];
-            let seen = match (solid_a, b) {
+            let observed = match b {
                 // The solid cell `a` and what lies beyond the box.
-                (_, Err(Beyond::Empty)) => marked[a],
-                (_, Err(Beyond::Platform)) => false,
-                (true, Ok(b)) => {
-                    marked[b] || (marked[a] && known[b] != Known::Excluded && front(b))
-                }
-                (false, Ok(b)) => {
-                    marked[a] || (marked[b] && known[a] != Known::Excluded && front(a))
+                Err(Beyond::Empty) => marked[a],
+                Err(Beyond::Platform) => false,
+                Ok(b) => {
+                    let (solid, other) = if inside[a] { (a, b) } else { (b, a) };
+                    marked[other]
+                        || (marked[solid]
+                            && known[other] != Known::Excluded
+                            && matches!(seen[other], Seen::Empty | Seen::Surface))
                 }
             };
-            if !seen {
+            if !observed {
                 s.invented += 1;
             }
         };
@@ -1497,8 +1481,9 @@ mod tests {
         inside: &[bool],
         known: &[Known],
         marked: &[bool],
-        front: &[bool],
+        seen: &[Seen],
     ) -> ClosedSurface {
+        let front = |i: usize| matches!(seen[i], Seen::Empty | Seen::Surface);
         let mut s = ClosedSurface::default();
         for z in 0..dims[2] {
             for y in 0..dims[1] {
@@ -1519,7 +1504,7 @@ mod tests {
                         let seen = match b {
                             None => d != 2 && marked[a],
                             Some(b) => {
-                                marked[b] || (marked[a] && known[b] != Known::Excluded && front[b])
+                                marked[b] || (marked[a] && known[b] != Known::Excluded && front(b))
                             }
                         };
                         s.invented += u64::from(!seen);
@@ -1535,18 +1520,21 @@ mod tests {
         #[test]
         fn surface_faces_are_those_of_every_cell(
             dims in proptest::array::uniform3(1usize..7),
-            seed in proptest::collection::vec(0u8..16, 7 * 7 * 7),
+            seed in proptest::collection::vec(0u8..32, 7 * 7 * 7),
         ) {
             let n = dims[0] * dims[1] * dims[2];
             let inside: Vec<bool> = seed[..n].iter().map(|&v| v & 1 == 1).collect();
             let marked: Vec<bool> = seed[..n].iter().map(|&v| v & 2 == 2).collect();
-            let front: Vec<bool> = seed[..n].iter().map(|&v| v & 4 == 4).collect();
+            let seen: Vec<Seen> = seed[..n]
+                .iter()
+                .map(|&v| [Seen::Empty, Seen::Surface, Seen::BehindSurface, Seen::Unseen][usize::from(v >> 2 & 3)])
+                .collect();
             let known: Vec<Known> = seed[..n]
                 .iter()
-                .map(|&v| if v & 8 == 8 { Known::Excluded } else { Known::Unknown })
+                .map(|&v| if v & 16 == 16 { Known::Excluded } else { Known::Unknown })
                 .collect();
-            let got = surface_faces(dims, &inside, &known, &marked, |i| front[i]);
-            proptest::prop_assert_eq!(got, surface_reference(dims, &inside, &known, &marked, &front));
+            let got = surface_faces(dims, &inside, &known, &marked, &seen);
+            proptest::prop_assert_eq!(got, surface_reference(dims, &inside, &known, &marked, &seen));
         }
     }
 
@@ -1569,8 +1557,8 @@ mod tests {
             }
         }
         let known = vec![Known::Unknown; n];
-        let all = |_: usize| true;
-        let seen = surface_faces(dims, &inside, &known, &inside, all);
+        let all = vec![Seen::Surface; n];
+        let seen = surface_faces(dims, &inside, &known, &inside, &all);
         assert_eq!(
             seen,
             ClosedSurface {
@@ -1580,7 +1568,7 @@ mod tests {
         );
         assert_eq!(seen.invented_share(), Some(9.0 / 54.0));
         let none = vec![false; n];
-        let added = surface_faces(dims, &inside, &known, &none, all);
+        let added = surface_faces(dims, &inside, &known, &none, &all);
         assert_eq!(
             added,
             ClosedSurface {
@@ -1589,7 +1577,16 @@ mod tests {
             }
         );
         // Beyond the +x side (x = 4): just behind a surface, not in front of one.
-        let back = surface_faces(dims, &inside, &known, &inside, |i| i % 5 != 4);
+        let behind: Vec<Seen> = (0..n)
+            .map(|i| {
+                if i % 5 == 4 {
+                    Seen::BehindSurface
+                } else {
+                    Seen::Surface
+                }
+            })
+            .collect();
+        let back = surface_faces(dims, &inside, &known, &inside, &behind);
         assert_eq!(
             back,
             ClosedSurface {

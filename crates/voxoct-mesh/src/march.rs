@@ -376,7 +376,7 @@ fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_pie
 /// The cells of brick `b` (key `k`) that [`peel_unobserved`] turns outside, appended to
 /// `peeled` in the brick's order.
 fn peel_in_brick(field: &Field<'_>, b: usize, k: [u32; 3], floor: u32, peeled: &mut Vec<[i64; 3]>) {
-    let below_floor = |g: [i64; 3]| g[1] < i64::from(floor);
+    let floor = i64::from(floor);
     // A brick without a block of values holds no cell.
     let Some(b) = field.block.get(b).copied().filter(|&v| v != NONE) else {
         return;
@@ -428,9 +428,7 @@ fn peel_in_brick(field: &Field<'_>, b: usize, k: [u32; 3], floor: u32, peeled: &
                 let (mut out, mut back) = (p, p);
                 out[axis] += sign;
                 back[axis] -= sign;
-                !below_floor([0, base[1] + out[1], 0])
-                    && value(out) == f32::INFINITY
-                    && observed(value(back))
+                base[1] + out[1] >= floor && value(out) == f32::INFINITY && observed(value(back))
             })
         });
         if between {
