@@ -1,5 +1,6 @@
-//! The simplifier's local test of a collapse: a segment against a triangle, in `f64`,
-//! touching included (whole meshes are checked exactly by `crate::selfx`).
+//! The simplifier's local tests of a collapse, in `f64`: a segment against a triangle,
+//! touching included (whole meshes are checked exactly by `crate::selfx`), and the
+//! squared distance from a point to a triangle.
 
 use voxoct_core::glam::{DVec2, DVec3};
 
@@ -56,6 +57,58 @@ fn point_in_triangle_2d(x: DVec2, t: [DVec2; 3]) -> bool {
     s.iter().all(|&v| v >= 0.0) || s.iter().all(|&v| v <= 0.0)
 }
 
+/// Squared distance from `p` to the closest point of triangle `t` (by the triangle's
+/// Voronoi regions, as in Ericson, *Real-Time Collision Detection* §5.1.5).
+pub(crate) fn point_triangle_sq(p: DVec3, t: [DVec3; 3]) -> f64 {
+    let [a, b, c] = t;
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return ap.length_squared();
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return bp.length_squared();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return (p - (a + ab * (d1 / (d1 - d3)))).length_squared();
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return cp.length_squared();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return (p - (a + ac * (d2 / (d2 - d6)))).length_squared();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (p - (b + (c - b) * w)).length_squared();
+    }
+    let denom = va + vb + vc;
+    if denom == 0.0 {
+        // Degenerate (all corners on a line, not caught above): the nearest corner or edge.
+        return [(a, b), (b, c), (c, a)]
+            .map(|(x, y)| {
+                let d = y - x;
+                let s = if d.length_squared() > 0.0 {
+                    ((p - x).dot(d) / d.length_squared()).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (p - (x + d * s)).length_squared()
+            })
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+    }
+    let (v, w) = (vb / denom, vc / denom);
+    (p - (a + ab * v + ac * w)).length_squared()
+}
+
 fn segments_2d(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
     let d1 = cross2(b - a, c - a);
     let d2 = cross2(b - a, d - a);
@@ -90,5 +143,41 @@ mod tests {
         assert!(segment_triangle(d(0.2, 0.2, 0.0), d(0.2, 0.2, 0.5), t));
         assert!(segment_triangle(d(-0.5, 0.2, 0.0), d(0.5, 0.2, 0.0), t));
         assert!(!segment_triangle(d(-0.5, -0.2, 0.0), d(-0.1, -0.2, 0.0), t));
+    }
+
+    /// Against a plain oracle: the minimum over a fine barycentric sampling of the triangle
+    /// (never below the exact distance, and within the sampling's reach above it).
+    #[test]
+    fn point_triangle_distance_is_the_nearest_point_of_the_triangle() {
+        let d = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+        let tris = [
+            [d(0.0, 0.0, 0.0), d(1.0, 0.0, 0.0), d(0.0, 1.0, 0.0)],
+            [d(0.3, -0.2, 0.5), d(-0.7, 0.4, 0.1), d(0.2, 0.9, -0.6)],
+            [d(0.0, 0.0, 0.0), d(1.0, 1.0, 1.0), d(2.0, 2.0, 2.0)],
+            [d(0.5, 0.5, 0.5); 3],
+        ];
+        let n = 200;
+        for t in tris {
+            for i in 0..125 {
+                let p = d(
+                    f64::from(i % 5) - 2.0,
+                    f64::from(i / 5 % 5) - 2.0,
+                    f64::from(i / 25) - 2.0,
+                ) * 0.7;
+                let mut best = f64::INFINITY;
+                for u in 0..=n {
+                    for v in 0..=n - u {
+                        let (s, r) = (f64::from(u) / f64::from(n), f64::from(v) / f64::from(n));
+                        let q = t[0] + (t[1] - t[0]) * s + (t[2] - t[0]) * r;
+                        best = best.min((p - q).length());
+                    }
+                }
+                let exact = point_triangle_sq(p, t).sqrt();
+                assert!(
+                    exact <= best + 1e-12 && best - exact < 0.02,
+                    "{t:?} {p}: {exact} vs {best}"
+                );
+            }
+        }
     }
 }

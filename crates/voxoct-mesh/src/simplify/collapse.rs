@@ -341,11 +341,35 @@ impl Collapser {
         let ok = self.ring(u, &mut ring_u)
             && self.ring(w, &mut ring_w)
             && self.link_condition(w, &ring_u, &ring_w)
-            && self.new_fan_ok(u, w, p, &mut fan);
+            && self.new_fan_ok(u, w, p, &mut fan)
+            && self.near_old_fans(u, w, p);
         self.ring_u = ring_u;
         self.ring_w = ring_w;
         self.fan = fan;
         ok
+    }
+
+    /// Whether `p` lies within the error bound of the triangles around `u` and `w` as they
+    /// are. The quadric bounds a mean over the merged planes weighted by area, so a sliver's
+    /// plane (at a crease, say) barely counts, and the minimum may slide along a large
+    /// plane past the crease, off the surface; this bounds the step of every collapse by
+    /// the surface itself (`p` is rounded to `f32`, hence the slack of a few ulps).
+    fn near_old_fans(&self, u: u32, w: u32, p: Vec3) -> bool {
+        let pd = p.as_dvec3();
+        let slack = 4.0 * f64::from(f32::EPSILON) * f64::from(p.abs().max_element());
+        let bound = self.max_sq.sqrt() + slack;
+        let bound_sq = bound * bound;
+        [u, w].into_iter().any(|v| {
+            let a = self.pos[v as usize].as_dvec3();
+            self.live_corners(v).any(|[b, c]| {
+                let t = [
+                    a,
+                    self.pos[b as usize].as_dvec3(),
+                    self.pos[c as usize].as_dvec3(),
+                ];
+                crate::collide::point_triangle_sq(pd, t) <= bound_sq
+            })
+        })
     }
 
     /// The neighbours of `v` (each once on a closed manifold); false if fewer than three.
