@@ -62,6 +62,23 @@ fn point_in_triangle_2d(x: DVec2, t: [DVec2; 3]) -> bool {
 pub(crate) fn point_triangle_sq(p: DVec3, t: [DVec3; 3]) -> f64 {
     let [a, b, c] = t;
     let (ab, ac, ap) = (b - a, c - a, p - a);
+    if ab.cross(ac) == DVec3::ZERO {
+        // No area (corners on a line or in one place): the nearest point of its edges. The
+        // regions below assume an area (every denominator is then an edge's or the
+        // normal's squared length).
+        return [(a, b), (b, c), (c, a)]
+            .map(|(x, y)| {
+                let d = y - x;
+                let s = if d.length_squared() > 0.0 {
+                    ((p - x).dot(d) / d.length_squared()).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (p - (x + d * s)).length_squared()
+            })
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+    }
     let (d1, d2) = (ab.dot(ap), ac.dot(ap));
     if d1 <= 0.0 && d2 <= 0.0 {
         return ap.length_squared();
@@ -90,21 +107,6 @@ pub(crate) fn point_triangle_sq(p: DVec3, t: [DVec3; 3]) -> f64 {
         return (p - (b + (c - b) * w)).length_squared();
     }
     let denom = va + vb + vc;
-    if denom == 0.0 {
-        // Degenerate (all corners on a line, not caught above): the nearest corner or edge.
-        return [(a, b), (b, c), (c, a)]
-            .map(|(x, y)| {
-                let d = y - x;
-                let s = if d.length_squared() > 0.0 {
-                    ((p - x).dot(d) / d.length_squared()).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                (p - (x + d * s)).length_squared()
-            })
-            .into_iter()
-            .fold(f64::INFINITY, f64::min);
-    }
     let (v, w) = (vb / denom, vc / denom);
     (p - (a + ab * v + ac * w)).length_squared()
 }
@@ -155,6 +157,9 @@ mod tests {
             [d(0.3, -0.2, 0.5), d(-0.7, 0.4, 0.1), d(0.2, 0.9, -0.6)],
             [d(0.0, 0.0, 0.0), d(1.0, 1.0, 1.0), d(2.0, 2.0, 2.0)],
             [d(0.5, 0.5, 0.5); 3],
+            // Two corners in one place (an edge of zero length).
+            [d(0.2, 0.1, 0.0), d(0.2, 0.1, 0.0), d(-0.4, 0.8, 0.3)],
+            [d(0.2, 0.1, 0.0), d(-0.4, 0.8, 0.3), d(-0.4, 0.8, 0.3)],
         ];
         let n = 200;
         for t in tris {
