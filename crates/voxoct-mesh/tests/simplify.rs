@@ -396,3 +396,27 @@ fn a_collapse_along_a_crease_of_slivers_stays_on_the_surface() {
     };
     check_simplify(&mesh, &simplify).unwrap();
 }
+
+/// A random case (seven scattered cells, meshed as in the thesis, so a chain of cells
+/// meeting at edges): collapses that each kept their fans' normals made a long triangle
+/// across the chain's fold, on the sheet facing the other way (cos −0.67), until every
+/// corner's original normal was checked too.
+#[test]
+fn a_thin_chain_of_cells_keeps_every_normal() {
+    let cells: Vec<Cell> = [
+        (0, 0, 0),
+        (11, 9, 9),
+        (12, 13, 11),
+        (10, 9, 9),
+        (11, 11, 10),
+        (11, 12, 10),
+        (11, 10, 10),
+    ]
+    .into_iter()
+    .map(|(x, y, z)| cell(IVec3::new(x, y, z), 1, 0.0))
+    .collect();
+    for opts in [MeshOptions::thesis(), MeshOptions::smooth()] {
+        let mesh = mesh_cells(&cells, &grid(), &opts).unwrap();
+        check_simplify(&mesh, &Simplify::for_leaf(LEAF)).unwrap();
+    }
+}

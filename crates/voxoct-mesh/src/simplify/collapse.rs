@@ -463,6 +463,15 @@ impl Collapser {
             ) {
                 return false;
             }
+            // Nor against any one corner's cluster: where a thin part folds back within a
+            // leaf, the sum above can agree while the triangle spans the fold and lies on
+            // the sheet that faces the other way (a random case did).
+            if [ends, self.nrm[t.b as usize], self.nrm[t.c as usize]]
+                .iter()
+                .any(|m| !greater(n_new.dot(*m), 0.0))
+            {
+                return false;
+            }
             let q_new = quality(ln, p, b, c);
             if q_new < MIN_QUALITY_ABSOLUTE || (q_new < MIN_QUALITY && q_new < quality(lo, a, b, c))
             {

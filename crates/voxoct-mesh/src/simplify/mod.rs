@@ -27,7 +27,9 @@
 //! - **No flips, no needles**: every triangle changed by a collapse keeps its normal within
 //!   [`MAX_NORMAL_TURN_DEG`] of its direction before; within 60° of the mean normal of the
 //!   fan it replaces; within 60° of the summed original normals of the clusters at its
-//!   corners (so turns cannot add up over many collapses); and its shape quality
+//!   corners, and within 90° of each corner's (so turns cannot add up over many collapses,
+//!   nor a triangle span a thin part's fold onto the sheet facing the other way); and its
+//!   shape quality
 //!   (`4√3·area / Σ edge²`, 1 for an equilateral) does not fall below [`MIN_QUALITY`] unless
 //!   it was already that low, and never below [`MIN_QUALITY_ABSOLUTE`].
 //! - **No self-intersections introduced**: each collapse tests the new fan exactly against
