@@ -204,6 +204,12 @@ impl Bricks {
         p
     }
 
+    /// Value of the cell at global (shifted) coordinates `g` (`+inf` where no brick holds
+    /// it).
+    fn value_at(&self, g: [i64; 3]) -> f32 {
+        slot_in(&self.map, &self.block, g).map_or(f32::INFINITY, |i| self.vals[i])
+    }
+
     /// Value of the cell at padded local coordinates `p` (0..=8) of brick `b`.
     #[inline]
     fn value(&self, b: usize, p: [u32; 3]) -> f32 {
@@ -264,6 +270,18 @@ fn observed(f: f32) -> bool {
     f.is_finite() && f >= -HALF_DIAGONAL
 }
 
+/// The slot in [`Bricks::vals`] of the cell at global (shifted) coordinates `g`, `None`
+/// where no brick holds it (its value is `+inf`).
+fn slot_in(map: &HashMap<u64, u32>, block: &[u32], g: [i64; 3]) -> Option<usize> {
+    if g.iter().any(|&c| !(0..1 << 24).contains(&c)) {
+        return None;
+    }
+    let g = g.map(|c| c as u32);
+    let b = *map.get(&brick_key([g[0] >> 3, g[1] >> 3, g[2] >> 3]))?;
+    let v = block[b as usize];
+    (v != NONE).then(|| v as usize * 512 + local(g[0] & 7, g[1] & 7, g[2] & 7))
+}
+
 /// Cell values by global (shifted) grid coordinates, over the bricks of [`Bricks::build`].
 struct Field<'a> {
     map: &'a HashMap<u64, u32>,
@@ -275,15 +293,7 @@ struct Field<'a> {
 impl Field<'_> {
     /// The slot of cell `g`, `None` where no brick holds it (its value is `+inf`).
     fn slot(&self, g: [i64; 3]) -> Option<usize> {
-        if g.iter().any(|&c| !(0..1 << 24).contains(&c)) {
-            return None;
-        }
-        let g = g.map(|c| c as u32);
-        let b = *self
-            .map
-            .get(&brick_key([g[0] >> 3, g[1] >> 3, g[2] >> 3]))?;
-        let v = self.block[b as usize];
-        (v != NONE).then(|| v as usize * 512 + local(g[0] & 7, g[1] & 7, g[2] & 7))
+        slot_in(self.map, self.block, g)
     }
 
     fn get(&self, g: [i64; 3]) -> f32 {
@@ -554,7 +564,6 @@ pub(crate) fn march(
     bricks.build(entries, inside, peel);
     if !keep {
         *entries = Vec::new();
-        bricks.map = HashMap::new();
     }
     number_vertices(bricks, first, slot, edges);
     place_vertices(
@@ -570,6 +579,7 @@ pub(crate) fn march(
     if !keep {
         bricks.vals = Vec::new();
         bricks.block = Vec::new();
+        bricks.map = HashMap::new();
     }
     emit_triangles(bricks, first, slot, edges, &mut out.triangles);
     if !keep {
@@ -661,10 +671,25 @@ fn place_vertices(
                             let q = [x + dir[0] as u32, y + dir[1] as u32, z + dir[2] as u32];
                             let fp = bricks.value(b, p);
                             let fq = bricks.value(b, q);
+                            let global = |l: [u32; 3]| [0, 1, 2].map(|k| i64::from(base[k] + l[k]));
                             if inside.test(fp) {
-                                crossing(placement, fp, fq, len)
+                                edge_crossing(
+                                    bricks,
+                                    placement,
+                                    inside,
+                                    (fp, global(p)),
+                                    (fq, global(q)),
+                                    len,
+                                )
                             } else {
-                                1.0 - crossing(placement, fq, fp, len)
+                                1.0 - edge_crossing(
+                                    bricks,
+                                    placement,
+                                    inside,
+                                    (fq, global(q)),
+                                    (fp, global(p)),
+                                    len,
+                                )
                             }
                         };
                         let t = f64::from(t);
@@ -683,6 +708,45 @@ fn place_vertices(
         }
         debug_assert!(next.next().is_none());
     });
+}
+
+/// How far behind an observed surface the back of a wall that no view saw is put, in cells
+/// (see [`edge_crossing`]).
+const UNSEEN_BACK_CELLS: f32 = 0.5;
+
+/// How much nearer the observed surface the cell beyond an edge's inside end must be for the
+/// edge to cross the back of a wall, in cells (see [`edge_crossing`]).
+const BACK_STEP_CELLS: f32 = 0.5;
+
+/// Where the surface crosses the edge from the inside cell `i` to the outside cell `o`
+/// (values and global coordinates), as a fraction from `i`: [`crossing`], except across the
+/// back of an observed wall. There `i` is marked (its value is its distance behind the
+/// observed surface), `o` is absent (no reading came near it) and the cell `r` beyond `i`
+/// on the same line is marked and at least half a cell nearer that surface (or outside
+/// it): the surface `i` measured lies on `r`'s side, and nothing was observed on `o`'s. (A
+/// step along the edge changes the distance by up to its length when the surface lies
+/// across it; a cell deep in a noisy shell, marked by a few stray readings, can read
+/// slightly nearer than `i`, and must not turn a seen face into a back.) [`crossing`] would mirror
+/// the measured distance onto `o`'s side, a wall up to a cell and a half thick that no
+/// view saw (the inside of a bowl or a vase whose outer wall alone was seen). The back is put
+/// [`UNSEEN_BACK_CELLS`] behind the observed surface instead (at `i`'s centre when that is
+/// farther): a wall of half a cell where the grid allows it, as close to the seen surface as
+/// the closure's prior (unseen surface next to seen surface) asks.
+fn edge_crossing(
+    bricks: &Bricks,
+    placement: Placement,
+    inside: Inside,
+    (fi, gi): (f32, [i64; 3]),
+    (fo, go): (f32, [i64; 3]),
+    len: f32,
+) -> f32 {
+    if inside == Inside::NonPositive && observed(fi) && fo == f32::INFINITY {
+        let fr = bricks.value_at([0, 1, 2].map(|k| 2 * gi[k] - go[k]));
+        if observed(fr) && fr > fi + BACK_STEP_CELLS {
+            return ((UNSEEN_BACK_CELLS + fi) / len).clamp(T_MIN, 1.0 - T_MIN);
+        }
+    }
+    crossing(placement, fi, fo, len)
 }
 
 /// Pass 3: triangles, each brick into its own range of `triangles` (cleared first), in
@@ -797,10 +861,26 @@ mod tests {
                         let q = p + IVec3::from_array(d);
                         let len = ((d[0] + d[1] + d[2]) as f32).sqrt();
                         let (fp, fq) = (value(p), value(q));
+                        // From the inside end `i` to the outside end `o`; the back of an
+                        // observed wall (the cell beyond `i` nearer its surface, `o` absent)
+                        // half a cell behind the surface.
+                        let from_inside = |i: IVec3, fi: f32, o: IVec3, fo: f32| {
+                            let fr = value(i + i - o);
+                            let back = inside == Inside::NonPositive
+                                && observed(fi)
+                                && fo == f32::INFINITY
+                                && observed(fr)
+                                && fr > fi + 0.5;
+                            if back {
+                                ((0.5 + fi) / len).clamp(T_MIN, 1.0 - T_MIN)
+                            } else {
+                                crossing(placement, fi, fo, len)
+                            }
+                        };
                         let t = f64::from(if inside.test(fp) {
-                            crossing(placement, fp, fq, len)
+                            from_inside(p, fp, q, fq)
                         } else {
-                            1.0 - crossing(placement, fq, fp, len)
+                            1.0 - from_inside(q, fq, p, fp)
                         });
                         let s = p + IVec3::splat(SHIFT as i32);
                         let g = DVec3::new(
@@ -816,6 +896,55 @@ mod tests {
         }
         out.sort_unstable();
         (out, keys.len())
+    }
+
+    /// A wall seen from one side (−x): a layer of cells in front of its surface and one
+    /// behind it, nothing beyond. The front crossing interpolates the two; the back, which
+    /// no reading reached, is half a cell behind the surface (the mirror of the measured
+    /// distance would put it 0.2 behind); without the front layer the side is unknown and
+    /// the distance is mirrored as before.
+    #[test]
+    fn the_unseen_back_of_a_wall_is_half_a_cell_behind_its_surface() {
+        let grid = GridSpec {
+            origin: Vec3::ZERO,
+            cell: 1.0,
+            resolution: 64,
+        };
+        let xs_on_axis_edges = |front: bool| {
+            let mut cells = Vec::new();
+            for z in 4..12u32 {
+                for y in 4..12u32 {
+                    if front {
+                        cells.push((UVec3::new(5, y, z), 0.4));
+                    }
+                    cells.push((UVec3::new(6, y, z), -0.2));
+                }
+            }
+            let mut scratch = Scratch {
+                entries: cells,
+                ..Scratch::default()
+            };
+            let mesh = marched(&mut scratch, &grid, Inside::NonPositive, false);
+            // Vertices on x edges through the middle of the wall (cell centres at +0.5).
+            let mut xs: Vec<f32> = mesh
+                .vertices
+                .iter()
+                .filter(|v| v.y == 8.5 && v.z == 8.5)
+                .map(|v| v.x - 0.5)
+                .collect();
+            xs.sort_by(f32::total_cmp);
+            xs
+        };
+        let close = |a: &[f32], b: &[f32]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-5)
+        };
+        let seen_front = xs_on_axis_edges(true);
+        assert!(
+            close(&seen_front, &[5.0 + 0.4 / 0.6, 6.3]),
+            "{seen_front:?}"
+        );
+        let no_front = xs_on_axis_edges(false);
+        assert!(close(&no_front, &[5.8, 6.2]), "{no_front:?}");
     }
 
     fn marched(scratch: &mut Scratch, grid: &GridSpec, inside: Inside, keep: bool) -> Mesh {

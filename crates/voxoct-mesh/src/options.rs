@@ -42,7 +42,10 @@ pub enum Placement {
     Midpoint,
     /// Sub-cell placement from [`voxoct_core::Cell::mean_sdf`]: between two marked cells the
     /// zero of the linearly interpolated signed distance; between a marked and an unmarked
-    /// cell, the marked cell's distance measured along the edge; next to a cell without an
+    /// cell, the marked cell's distance measured along the edge, except across the back of
+    /// a wall that no view saw (the marked cell's other neighbour on the edge's line at
+    /// least half a cell nearer the surface), which is put half a cell behind the surface
+    /// (with [`MeshOptions::solid`]); next to a cell without an
     /// observed surface (enclosed by the fill, or added by the closure with
     /// [`crate::closure::CLOSED_SDF`]), the middle of the edge. Positions are clamped to
     /// `[0.02, 0.98]` of the edge, so topology is that of the binary field and no triangle
