@@ -108,9 +108,9 @@ fn cuboid(lo: Vec3, hi: Vec3) -> Vec<Triangle> {
 /// few percent).
 ///
 /// Where no view saw the inner wall, the closure puts it along the observed outer wall (the
-/// wall it keeps is half a leaf to a leaf thick, not the cup's 6 mm): the volume comes out
-/// at about a third of the cup's. A closure that continued the
-/// observed wall's thickness would bring it to the model's.
+/// wall it keeps is about a leaf thin or thinner, not the cup's 6 mm): the volume comes out
+/// at about a third of the cup's. A closure that continued the observed wall's thickness
+/// would bring it to the model's.
 #[test]
 fn a_cup_keeps_its_inside_open() {
     let (ratio, mesh, unseen) = volume_ratio("mug", 0.0015);

@@ -671,26 +671,17 @@ fn place_vertices(
                             let q = [x + dir[0] as u32, y + dir[1] as u32, z + dir[2] as u32];
                             let fp = bricks.value(b, p);
                             let fq = bricks.value(b, q);
-                            let global = |l: [u32; 3]| [0, 1, 2].map(|k| i64::from(base[k] + l[k]));
-                            if inside.test(fp) {
-                                edge_crossing(
-                                    bricks,
-                                    placement,
-                                    inside,
-                                    (fp, global(p)),
-                                    (fq, global(q)),
-                                    len,
-                                )
+                            let end =
+                                |l: [u32; 3], f| (f, [0, 1, 2].map(|k| i64::from(base[k] + l[k])));
+                            // From the inside end, turned back into a fraction from `p`.
+                            let from_p = inside.test(fp);
+                            let (i, o) = if from_p {
+                                (end(p, fp), end(q, fq))
                             } else {
-                                1.0 - edge_crossing(
-                                    bricks,
-                                    placement,
-                                    inside,
-                                    (fq, global(q)),
-                                    (fp, global(p)),
-                                    len,
-                                )
-                            }
+                                (end(q, fq), end(p, fp))
+                            };
+                            let t = edge_crossing(bricks, placement, inside, i, o, len);
+                            if from_p { t } else { 1.0 - t }
                         };
                         let t = f64::from(t);
                         let g = DVec3::new(
@@ -870,9 +861,9 @@ mod tests {
                                 && observed(fi)
                                 && fo == f32::INFINITY
                                 && observed(fr)
-                                && fr > fi + 0.5;
+                                && fr > fi + BACK_STEP_CELLS;
                             if back {
-                                ((0.5 + fi) / len).clamp(T_MIN, 1.0 - T_MIN)
+                                ((UNSEEN_BACK_CELLS + fi) / len).clamp(T_MIN, 1.0 - T_MIN)
                             } else {
                                 crossing(placement, fi, fo, len)
                             }

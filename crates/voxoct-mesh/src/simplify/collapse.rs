@@ -456,7 +456,8 @@ impl Collapser {
             flat &= d > FLAT_COS * l;
             // Never against the original surface: the new triangle faces the way the
             // original triangles merged into its corners face on the whole.
-            let reference = ends + self.nrm[t.b as usize] + self.nrm[t.c as usize];
+            let corners = [ends, self.nrm[t.b as usize], self.nrm[t.c as usize]];
+            let reference = corners[0] + corners[1] + corners[2];
             if !greater(
                 n_new.dot(reference),
                 REFERENCE_COS_MIN * ln * reference.length(),
@@ -466,10 +467,7 @@ impl Collapser {
             // Nor against any one corner's cluster: where a thin part folds back within a
             // leaf, the sum above can agree while the triangle spans the fold and lies on
             // the sheet that faces the other way (a random case did).
-            if [ends, self.nrm[t.b as usize], self.nrm[t.c as usize]]
-                .iter()
-                .any(|m| !greater(n_new.dot(*m), 0.0))
-            {
+            if corners.iter().any(|m| !greater(n_new.dot(*m), 0.0)) {
                 return false;
             }
             let q_new = quality(ln, p, b, c);
