@@ -6,6 +6,12 @@
 //! visited exactly once, by integer key. For every brick that holds a cell, its seven
 //! "minus" neighbours exist too, so every cube that has a cell as a corner is visited.
 //!
+//! Before the passes, in solid signed-distance mode, the cell field is cleaned up: the
+//! unobserved cells in the one-cell dents of the observed surface are turned outside
+//! (`peel_unobserved`), and absent cells are filled where a tetrahedron's diagonal would
+//! let the outside through a wall that inside cells close on every face path
+//! (`diagonal_leaks`).
+//!
 //! Pass 1 marks, per brick, the edges whose ends differ in inside-ness (bit rows: eight
 //! edges per XOR) and numbers them by prefix sums: a vertex's index is its brick's prefix
 //! plus a popcount, so welding needs no hash map. Pass 2 places the vertices, pass 3 emits
@@ -108,7 +114,11 @@ impl Bricks {
         keys.clear();
         block.clear();
         vals.clear();
-        let mut get = |k: [u32; 3], keys: &mut Vec<[u32; 3]>, block: &mut Vec<u32>| -> usize {
+        let get = |map: &mut HashMap<u64, u32>,
+                   k: [u32; 3],
+                   keys: &mut Vec<[u32; 3]>,
+                   block: &mut Vec<u32>|
+         -> usize {
             *map.entry(brick_key(k)).or_insert_with(|| {
                 keys.push(k);
                 block.push(NONE);
@@ -122,7 +132,7 @@ impl Bricks {
             let v = if k == last.0 {
                 last.1
             } else {
-                let b = get(k, keys, block);
+                let b = get(map, k, keys, block);
                 if block[b] == NONE {
                     block[b] = (vals.len() / 512) as u32;
                     vals.resize(vals.len() + 512, f32::INFINITY);
@@ -139,13 +149,42 @@ impl Bricks {
             for o in 1..8u8 {
                 let d = corner_offset(o);
                 let m = [0, 1, 2].map(|i| k[i] - d[i] as u32);
-                get(m, keys, block);
+                get(map, m, keys, block);
             }
         }
         if let Some(min_piece) = peel.filter(|_| inside == Inside::NonPositive) {
             let floor = entries.iter().map(|e| e.0.y + SHIFT).min().unwrap_or(0);
             let mut field = Field { map, block, vals };
             peel_unobserved(&mut field, keys, floor, min_piece);
+        }
+        if inside == Inside::NonPositive {
+            for _ in 0..SEAL_ROUNDS {
+                let field = Field { map, block, vals };
+                let fills = diagonal_leaks(&field, keys);
+                if fills.is_empty() {
+                    break;
+                }
+                for g in fills {
+                    let g = g.map(|c| c as u32);
+                    let b = get(map, [g[0] >> 3, g[1] >> 3, g[2] >> 3], keys, block);
+                    if block[b] == NONE {
+                        block[b] = (vals.len() / 512) as u32;
+                        vals.resize(vals.len() + 512, f32::INFINITY);
+                    }
+                    vals[block[b] as usize * 512 + local(g[0] & 7, g[1] & 7, g[2] & 7)] = 0.0;
+                }
+                // Every brick that holds a cell keeps its minus neighbours.
+                for b in 0..keys.len() {
+                    if block[b] == NONE {
+                        continue;
+                    }
+                    let k = keys[b];
+                    for o in 1..8u8 {
+                        let d = corner_offset(o);
+                        get(map, [0, 1, 2].map(|i| k[i] - d[i] as u32), keys, block);
+                    }
+                }
+            }
         }
         let n = keys.len();
         rows.clear();
@@ -298,6 +337,169 @@ impl Field<'_> {
 
     fn get(&self, g: [i64; 3]) -> f32 {
         self.slot(g).map_or(f32::INFINITY, |i| self.vals[i])
+    }
+}
+
+/// Most rounds of [`diagonal_leaks`] and filling: a round's fills block the face paths of a
+/// few other diagonals (the bowl and the vase need three or four).
+const SEAL_ROUNDS: usize = 8;
+
+/// The absent cells that [`Bricks::build`] fills (with value 0) so that the outside does
+/// not pass through a wall that only the tetrahedra's diagonals cross.
+///
+/// The marcher's tetrahedra join cells along 7 directions and their opposites: the faces and
+/// the diagonals `(1, 1, 0)`, `(1, 0, 1)`, `(0, 1, 1)`, `(1, 1, 1)`. Two outside cells at the
+/// ends of such a diagonal are joined even when inside cells block every face path between
+/// them within their cube — and the closure (whose cut joins cells through faces only) and
+/// the walls it puts behind observed surfaces assume they are not. A wall one or two cells
+/// thick across such a diagonal (a bowl's flaring side, normal near `±(1, 1, 1)`, is one)
+/// then lets the outside through at every such diagonal: pinholes, each a handle of the
+/// surface (a simulated bowl had 2530, its true genus is 0), where the cut had closed the
+/// wall. Filling one end of every such diagonal makes the outside join through faces only,
+/// as the cut does.
+///
+/// Which end: an absent one (a marked cell keeps its measured distance) that no marked cell
+/// outside its surface touches (that side of the wall was observed, and filling it would
+/// move the observed surface out): the back of the wall, where no view saw anything. When
+/// both ends qualify, the one more enclosed by inside cells. The surface then passes within
+/// [`T_MIN`] of the filled cell's centre: the wall grows by the least the tetrahedra allow,
+/// about 0.6 cell there.
+///
+/// Returns global shifted coordinates, sorted, each once.
+fn diagonal_leaks(field: &Field<'_>, keys: &[[u32; 3]]) -> Vec<[i64; 3]> {
+    let mut out = Vec::new();
+    par::extend_in_order(&mut out, keys.len(), PEEL_BRICKS_PER_TASK, |b, out| {
+        leaks_in_brick(field, keys[b], out);
+    });
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+/// The 6 face steps.
+const FACE_STEPS: [[i64; 3]; 6] = [
+    [-1, 0, 0],
+    [1, 0, 0],
+    [0, -1, 0],
+    [0, 1, 0],
+    [0, 0, -1],
+    [0, 0, 1],
+];
+
+/// [`diagonal_leaks`] for the diagonals whose lower end lies in the brick at key `k`.
+fn leaks_in_brick(field: &Field<'_>, k: [u32; 3], out: &mut Vec<[i64; 3]>) {
+    // The 27 bricks around this one (blocks or `None`): a value is an array read. A
+    // diagonal's cells lie at offsets 0 or 1 from its lower end, the ends' face neighbours
+    // one further.
+    let mut around = [None; 27];
+    for (i, slot) in around.iter_mut().enumerate() {
+        let d = [i % 3, (i / 3) % 3, i / 9].map(|c| i64::from(c as u8) - 1);
+        let n = [0, 1, 2].map(|a| i64::from(k[a]) + d[a]);
+        if n.iter().any(|&c| c < 0) {
+            continue;
+        }
+        *slot = field
+            .map
+            .get(&brick_key(n.map(|c| c as u32)))
+            .map(|&x| field.block[x as usize])
+            .filter(|&v| v != NONE)
+            .map(|v| v as usize);
+    }
+    // No cell in this brick or on its plus sides: no diagonal with inside cells starts here.
+    if (0..8u8).all(|o| {
+        let d = corner_offset(o).map(|c| c as usize + 1);
+        around[d[2] * 9 + d[1] * 3 + d[0]].is_none()
+    }) {
+        return;
+    }
+    // The value of the cell at local coordinates `q` (each in -8..16).
+    let value = |q: [i64; 3]| -> f32 {
+        let b = q.map(|c| (c.div_euclid(8) + 1) as usize);
+        around[b[2] * 9 + b[1] * 3 + b[0]].map_or(f32::INFINITY, |v| {
+            let l = q.map(|c| (c & 7) as u32);
+            field.vals[v * 512 + local(l[0], l[1], l[2])]
+        })
+    };
+    // Inside bits of the 9 × 9 × 9 cells from this brick's first: `rows[z][y]`, bit x.
+    let mut rows = [[0u16; 9]; 9];
+    for (z, plane) in rows.iter_mut().enumerate() {
+        for (y, row) in plane.iter_mut().enumerate() {
+            for x in 0..9 {
+                if value([x, y as i64, z as i64]) <= 0.0 {
+                    *row |= 1 << x;
+                }
+            }
+        }
+    }
+    let base = k.map(|c| i64::from(c) * 8);
+    let at = |c: [i64; 3], s: [i64; 3]| [c[0] + s[0], c[1] + s[1], c[2] + s[2]];
+    // An end that may be filled: absent, and no marked cell outside its surface beside it
+    // (that side was observed, and filling it would move the observed surface out).
+    let back = |c: [i64; 3]| {
+        value(c) == f32::INFINITY
+            && !FACE_STEPS.iter().any(|&s| {
+                let f = value(at(c, s));
+                f.is_finite() && f > 0.0
+            })
+    };
+    // How enclosed an end is: its face neighbours' values, absent ones as 2, unobserved
+    // inside ones as -2 (lower: more enclosed).
+    let enclosure = |c: [i64; 3]| -> f32 {
+        FACE_STEPS
+            .iter()
+            .map(|&s| value(at(c, s)).clamp(-2.0, 2.0))
+            .sum()
+    };
+    let mut leak = |p: [i64; 3], d: [i64; 3]| {
+        let q = at(p, d);
+        let fill = match (back(p), back(q)) {
+            (true, true) => {
+                if enclosure(p) < enclosure(q) {
+                    p
+                } else {
+                    q
+                }
+            }
+            (true, false) => p,
+            (false, true) => q,
+            (false, false) => return,
+        };
+        let g = [base[0] + fill[0], base[1] + fill[1], base[2] + fill[2]];
+        // Not before the grid's first cell (no brick there keeps its minus neighbours).
+        if g.iter().all(|&c| c >= i64::from(SHIFT)) {
+            out.push(g);
+        }
+    };
+    for z in 0..8 {
+        for y in 0..8 {
+            let r = |dy: usize, dz: usize| u32::from(rows[z + dz][y + dy]);
+            // Outside lower ends (bit x: the cell at x).
+            let out0 = !r(0, 0) & 0xFF;
+            if out0 == 0 {
+                continue;
+            }
+            // Inside bits of the lower end's cube corners, shifted to bit x.
+            let (ix, iy, iz) = (r(0, 0) >> 1, r(1, 0), r(0, 1));
+            let (ixy, ixz, iyz, ixyz) = (r(1, 0) >> 1, r(0, 1) >> 1, r(1, 1), r(1, 1) >> 1);
+            // A face diagonal leaks when both cells beside it are inside and its upper end
+            // is outside; the body diagonal when no monotone face path through the cube is
+            // outside all along.
+            let open = (!ix & (!ixy | !ixz)) | (!iy & (!ixy | !iyz)) | (!iz & (!ixz | !iyz));
+            let leaks = [
+                (out0 & ix & iy & !ixy, [1, 1, 0]),
+                (out0 & ix & iz & !ixz, [1, 0, 1]),
+                (out0 & iy & iz & !iyz, [0, 1, 1]),
+                (out0 & !ixyz & !open, [1, 1, 1]),
+            ];
+            for (mask, d) in leaks {
+                let mut m = mask & 0xFF;
+                while m != 0 {
+                    let x = i64::from(m.trailing_zeros());
+                    m &= m - 1;
+                    leak([x, y as i64, z as i64], d);
+                }
+            }
+        }
     }
 }
 
@@ -544,8 +746,11 @@ pub(crate) struct Scratch {
 /// Marches `scratch.entries` into `out` (cleared first). With [`Inside::NonPositive`] and
 /// `peel = Some(min_piece)`, the unobserved cells in the dents of the observed surface are
 /// turned outside first, and the inside pieces of fewer than `min_piece` cells this cuts off
-/// dropped (see [`peel_unobserved`]); `None` marches the cells as they are. Without `keep`, each buffer is freed as soon as the passes that
-/// read it are done (lower peak memory for a one-shot mesher; `scratch` is then empty).
+/// dropped (see [`peel_unobserved`]); `None` marches the cells as they are. With
+/// [`Inside::NonPositive`], either way, the absent cells that close the tetrahedra's
+/// diagonals through thin walls are then filled (see [`diagonal_leaks`]). Without `keep`,
+/// each buffer is freed as soon as the passes that read it are done (lower peak memory for
+/// a one-shot mesher; `scratch` is then empty).
 pub(crate) fn march(
     scratch: &mut Scratch,
     grid: &GridSpec,
@@ -820,6 +1025,14 @@ mod tests {
         inside: Inside,
         placement: Placement,
     ) -> (Vec<[[u32; 3]; 3]>, usize) {
+        let mut sealed;
+        let cells = if inside == Inside::NonPositive {
+            sealed = cells.clone();
+            reference_seal(&mut sealed);
+            &sealed
+        } else {
+            cells
+        };
         let value = |p: IVec3| cells.get(&p.to_array()).copied().unwrap_or(f32::INFINITY);
         let mut cubes: Vec<IVec3> = Vec::new();
         for c in cells.keys() {
@@ -889,6 +1102,96 @@ mod tests {
         (out, keys.len())
     }
 
+    /// [`diagonal_leaks`]'s fills, round by round, cell by cell: every diagonal between two
+    /// outside cells that inside cells block on every face path through its cube gets the
+    /// end that may be filled (absent, no marked cell outside its surface beside it; of two,
+    /// the more enclosed, the upper on a tie) filled with 0.
+    fn reference_seal(cells: &mut HashMap<[i32; 3], f32>) {
+        let value =
+            |c: &HashMap<[i32; 3], f32>, p: [i32; 3]| c.get(&p).copied().unwrap_or(f32::INFINITY);
+        let add = |a: [i32; 3], b: [i32; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+        let faces = [
+            [-1, 0, 0],
+            [1, 0, 0],
+            [0, -1, 0],
+            [0, 1, 0],
+            [0, 0, -1],
+            [0, 0, 1],
+        ];
+        for _ in 0..SEAL_ROUNDS {
+            let c = &*cells;
+            let ins = |p: [i32; 3]| value(c, p) <= 0.0;
+            // Absent, and no marked cell outside its surface beside it.
+            let back = |p: [i32; 3]| {
+                value(c, p) == f32::INFINITY
+                    && !faces.iter().any(|&s| {
+                        let f = value(c, add(p, s));
+                        f.is_finite() && f > 0.0
+                    })
+            };
+            let enclosure = |p: [i32; 3]| -> f32 {
+                faces
+                    .iter()
+                    .map(|&s| value(c, add(p, s)).clamp(-2.0, 2.0))
+                    .sum()
+            };
+            let mut ends: Vec<[i32; 3]> = c
+                .keys()
+                .flat_map(|&k| {
+                    (0..8u8).map(move |o| {
+                        let d = corner_offset(o);
+                        [k[0] - d[0], k[1] - d[1], k[2] - d[2]]
+                    })
+                })
+                .collect();
+            ends.sort_unstable();
+            ends.dedup();
+            let (x, y, z) = ([1, 0, 0], [0, 1, 0], [0, 0, 1]);
+            let mut fills = Vec::new();
+            for p in ends {
+                if ins(p) {
+                    continue;
+                }
+                let mut leaks = Vec::new();
+                for (a, b) in [(x, y), (x, z), (y, z)] {
+                    if ins(add(p, a)) && ins(add(p, b)) && !ins(add(add(p, a), b)) {
+                        leaks.push(add(add(p, a), b));
+                    }
+                }
+                let q = add(add(p, x), add(y, z));
+                let open = [(x, y), (x, z), (y, x), (y, z), (z, x), (z, y)]
+                    .iter()
+                    .any(|&(a, b)| !ins(add(p, a)) && !ins(add(add(p, a), b)));
+                if !ins(q) && !open {
+                    leaks.push(q);
+                }
+                for q in leaks {
+                    let fill = match (back(p), back(q)) {
+                        (true, true) => {
+                            if enclosure(p) < enclosure(q) {
+                                p
+                            } else {
+                                q
+                            }
+                        }
+                        (true, false) => p,
+                        (false, true) => q,
+                        (false, false) => continue,
+                    };
+                    if fill.iter().all(|&c| c >= 0) {
+                        fills.push(fill);
+                    }
+                }
+            }
+            if fills.is_empty() {
+                break;
+            }
+            for f in fills {
+                cells.insert(f, 0.0);
+            }
+        }
+    }
+
     /// A wall seen from one side (−x): a layer of cells in front of its surface and one
     /// behind it, nothing beyond. The front crossing interpolates the two; the back, which
     /// no reading reached, is half a cell behind the surface (the mirror of the measured
@@ -936,6 +1239,61 @@ mod tests {
         );
         let no_front = xs_on_axis_edges(false);
         assert!(close(&no_front, &[5.8, 6.2]), "{no_front:?}");
+    }
+
+    /// A wall two cells thick across the tetrahedra's long diagonal (cells with
+    /// `x + y + z` = 36 or 37 inside, the layer in front of it marked outside, each with its
+    /// distance to the plane it saw, nothing behind it: a bowl's flaring side seen from
+    /// outside). Every cube with a corner on each
+    /// side lets the outside through along its diagonal unless one end is filled: the
+    /// marched surface then has a handle per such cube (genus 75 here). Sealed, it is one closed sheet of
+    /// genus 0, and the front (observed) side is where it was.
+    #[test]
+    fn a_wall_across_the_long_diagonal_has_no_pinholes() {
+        let grid = GridSpec {
+            origin: Vec3::ZERO,
+            cell: 1.0,
+            resolution: 64,
+        };
+        let mut cells = Vec::new();
+        for z in 8..20u32 {
+            for y in 8..20u32 {
+                for x in 8..20u32 {
+                    // The distance in cells to the plane x + y + z = 35.7, positive in
+                    // front of it.
+                    let v = match x + y + z {
+                        s @ 35..=37 => (35.7 - s as f32) / 3f32.sqrt(),
+                        _ => continue,
+                    };
+                    cells.push((UVec3::new(x, y, z), v));
+                }
+            }
+        }
+        let mut scratch = Scratch {
+            entries: cells.clone(),
+            ..Scratch::default()
+        };
+        let mesh = marched(&mut scratch, &grid, Inside::NonPositive, false);
+        let stats = mesh.stats();
+        assert_eq!((stats.components, stats.genus()), (1, Some(0)), "{stats:?}");
+        // Without the seal (the plain tetrahedra), the same wall is full of holes.
+        let mut map: HashMap<[i32; 3], f32> = cells
+            .iter()
+            .map(|(c, v)| (c.as_ivec3().to_array(), *v))
+            .collect();
+        let before = map.len();
+        reference_seal(&mut map);
+        let filled: Vec<_> = map
+            .iter()
+            .filter(|(_, v)| **v == 0.0)
+            .map(|(k, _)| *k)
+            .collect();
+        assert!(filled.len() > 50, "{} of {before}", filled.len());
+        // Every filled cell is behind the wall (x + y + z = 38), none on its observed side.
+        assert!(
+            filled.iter().all(|k| k[0] + k[1] + k[2] == 38),
+            "{filled:?}"
+        );
     }
 
     fn marched(scratch: &mut Scratch, grid: &GridSpec, inside: Inside, keep: bool) -> Mesh {
