@@ -114,17 +114,6 @@ impl Bricks {
         keys.clear();
         block.clear();
         vals.clear();
-        let get = |map: &mut HashMap<u64, u32>,
-                   k: [u32; 3],
-                   keys: &mut Vec<[u32; 3]>,
-                   block: &mut Vec<u32>|
-         -> usize {
-            *map.entry(brick_key(k)).or_insert_with(|| {
-                keys.push(k);
-                block.push(NONE);
-                (keys.len() - 1) as u32
-            }) as usize
-        };
         let mut last = ([u32::MAX; 3], 0usize);
         for &(c, f) in entries {
             let g = c + UVec3::splat(SHIFT);
@@ -132,25 +121,14 @@ impl Bricks {
             let v = if k == last.0 {
                 last.1
             } else {
-                let b = get(map, k, keys, block);
-                if block[b] == NONE {
-                    block[b] = (vals.len() / 512) as u32;
-                    vals.resize(vals.len() + 512, f32::INFINITY);
-                }
-                let v = block[b] as usize;
+                let v = held_brick(map, keys, block, vals, k).1;
                 last = (k, v);
                 v
             };
             vals[v * 512 + local(g.x & 7, g.y & 7, g.z & 7)] = f;
         }
-        let occupied = keys.len();
-        for b in 0..occupied {
-            let k = keys[b];
-            for o in 1..8u8 {
-                let d = corner_offset(o);
-                let m = [0, 1, 2].map(|i| k[i] - d[i] as u32);
-                get(map, m, keys, block);
-            }
+        for b in 0..keys.len() {
+            keep_minus_neighbours(map, keys, block, b);
         }
         if let Some(min_piece) = peel.filter(|_| inside == Inside::NonPositive) {
             let floor = entries.iter().map(|e| e.0.y + SHIFT).min().unwrap_or(0);
@@ -158,32 +136,37 @@ impl Bricks {
             peel_unobserved(&mut field, keys, floor, min_piece);
         }
         if inside == Inside::NonPositive {
+            // The first round looks at every brick, a later one only around the cells the
+            // round before filled (nothing else changed).
+            let mut look: Vec<usize> = (0..keys.len()).collect();
             for _ in 0..SEAL_ROUNDS {
-                let field = Field { map, block, vals };
-                let fills = diagonal_leaks(&field, keys);
+                let fills = diagonal_leaks(&Field { map, block, vals }, keys, &look);
                 if fills.is_empty() {
                     break;
                 }
-                for g in fills {
+                for &g in &fills {
                     let g = g.map(|c| c as u32);
-                    let b = get(map, [g[0] >> 3, g[1] >> 3, g[2] >> 3], keys, block);
-                    if block[b] == NONE {
-                        block[b] = (vals.len() / 512) as u32;
-                        vals.resize(vals.len() + 512, f32::INFINITY);
-                    }
-                    vals[block[b] as usize * 512 + local(g[0] & 7, g[1] & 7, g[2] & 7)] = 0.0;
+                    let k = [g[0] >> 3, g[1] >> 3, g[2] >> 3];
+                    let (b, v) = held_brick(map, keys, block, vals, k);
+                    vals[v * 512 + local(g[0] & 7, g[1] & 7, g[2] & 7)] = 0.0;
+                    keep_minus_neighbours(map, keys, block, b);
                 }
-                // Every brick that holds a cell keeps its minus neighbours.
-                for b in 0..keys.len() {
-                    if block[b] == NONE {
-                        continue;
-                    }
-                    let k = keys[b];
-                    for o in 1..8u8 {
-                        let d = corner_offset(o);
-                        get(map, [0, 1, 2].map(|i| k[i] - d[i] as u32), keys, block);
+                look.clear();
+                for g in &fills {
+                    for o in 0..27 {
+                        let k = [0, 1, 2].map(|a| (g[a] >> 3) + [o % 3, o / 3 % 3, o / 9][a] - 1);
+                        if let Some(&b) = k
+                            .iter()
+                            .all(|&c| c >= 0)
+                            .then(|| map.get(&brick_key(k.map(|c| c as u32))))
+                            .flatten()
+                        {
+                            look.push(b as usize);
+                        }
                     }
                 }
+                look.sort_unstable();
+                look.dedup();
             }
         }
         let n = keys.len();
@@ -309,6 +292,55 @@ fn observed(f: f32) -> bool {
     f.is_finite() && f >= -HALF_DIAGONAL
 }
 
+/// The brick at key `k` (added when missing) and its block of values (allocated, all
+/// `+inf`, when it had none).
+fn held_brick(
+    map: &mut HashMap<u64, u32>,
+    keys: &mut Vec<[u32; 3]>,
+    block: &mut Vec<u32>,
+    vals: &mut Vec<f32>,
+    k: [u32; 3],
+) -> (usize, usize) {
+    let b = brick_index(map, keys, block, k);
+    if block[b] == NONE {
+        block[b] = (vals.len() / 512) as u32;
+        vals.resize(vals.len() + 512, f32::INFINITY);
+    }
+    (b, block[b] as usize)
+}
+
+/// The index of the brick at key `k`, added (without values) when missing.
+fn brick_index(
+    map: &mut HashMap<u64, u32>,
+    keys: &mut Vec<[u32; 3]>,
+    block: &mut Vec<u32>,
+    k: [u32; 3],
+) -> usize {
+    *map.entry(brick_key(k)).or_insert_with(|| {
+        keys.push(k);
+        block.push(NONE);
+        (keys.len() - 1) as u32
+    }) as usize
+}
+
+/// Adds the seven minus neighbours of brick `b` when it holds values, so that every cube
+/// with a cell as a corner is visited.
+fn keep_minus_neighbours(
+    map: &mut HashMap<u64, u32>,
+    keys: &mut Vec<[u32; 3]>,
+    block: &mut Vec<u32>,
+    b: usize,
+) {
+    if block[b] == NONE {
+        return;
+    }
+    let k = keys[b];
+    for o in 1..8u8 {
+        let d = corner_offset(o);
+        brick_index(map, keys, block, [0, 1, 2].map(|i| k[i] - d[i] as u32));
+    }
+}
+
 /// The slot in [`Bricks::vals`] of the cell at global (shifted) coordinates `g`, `None`
 /// where no brick holds it (its value is `+inf`).
 fn slot_in(map: &HashMap<u64, u32>, block: &[u32], g: [i64; 3]) -> Option<usize> {
@@ -364,17 +396,34 @@ const SEAL_ROUNDS: usize = 8;
 /// move the observed surface out): the back of the wall, where no view saw anything. When
 /// both ends qualify, the one more enclosed by inside cells. The surface then passes within
 /// [`T_MIN`] of the filled cell's centre: the wall grows by the least the tetrahedra allow,
-/// about 0.6 cell there.
+/// one layer of cells along the diagonal (1/√3 cell across a wall normal to `(1, 1, 1)`).
 ///
-/// Returns global shifted coordinates, sorted, each once.
-fn diagonal_leaks(field: &Field<'_>, keys: &[[u32; 3]]) -> Vec<[i64; 3]> {
+/// Looks at the diagonals whose lower end lies in the bricks `look` (indices into `keys`);
+/// returns global shifted coordinates, sorted, each once.
+fn diagonal_leaks(field: &Field<'_>, keys: &[[u32; 3]], look: &[usize]) -> Vec<[i64; 3]> {
     let mut out = Vec::new();
-    par::extend_in_order(&mut out, keys.len(), PEEL_BRICKS_PER_TASK, |b, out| {
-        leaks_in_brick(field, keys[b], out);
+    par::extend_in_order(&mut out, look.len(), PEEL_BRICKS_PER_TASK, |i, out| {
+        leaks_in_brick(field, keys[look[i]], out);
     });
     out.sort_unstable();
     out.dedup();
     out
+}
+
+/// Which end of a leaking diagonal [`diagonal_leaks`] fills: one that `back` allows, of
+/// two the more enclosed (lower `enclosure`), the upper `q` on a tie.
+fn end_to_fill<T: Copy>(
+    p: T,
+    q: T,
+    back: impl Fn(T) -> bool,
+    enclosure: impl Fn(T) -> f32,
+) -> Option<T> {
+    match (back(p), back(q)) {
+        (true, true) => Some(if enclosure(p) < enclosure(q) { p } else { q }),
+        (true, false) => Some(p),
+        (false, true) => Some(q),
+        (false, false) => None,
+    }
 }
 
 /// The 6 face steps.
@@ -452,20 +501,10 @@ fn leaks_in_brick(field: &Field<'_>, k: [u32; 3], out: &mut Vec<[i64; 3]>) {
             .sum()
     };
     let mut leak = |p: [i64; 3], d: [i64; 3]| {
-        let q = at(p, d);
-        let fill = match (back(p), back(q)) {
-            (true, true) => {
-                if enclosure(p) < enclosure(q) {
-                    p
-                } else {
-                    q
-                }
-            }
-            (true, false) => p,
-            (false, true) => q,
-            (false, false) => return,
+        let Some(fill) = end_to_fill(p, at(p, d), back, enclosure) else {
+            return;
         };
-        let g = [base[0] + fill[0], base[1] + fill[1], base[2] + fill[2]];
+        let g = at(base, fill);
         // Not before the grid's first cell (no brick there keeps its minus neighbours).
         if g.iter().all(|&c| c >= i64::from(SHIFT)) {
             out.push(g);
@@ -1103,22 +1142,15 @@ mod tests {
         (out, keys.len())
     }
 
-    /// [`diagonal_leaks`]'s fills, round by round, cell by cell: every diagonal between two
-    /// outside cells that inside cells block on every face path through its cube gets the
-    /// end that may be filled (absent, no marked cell outside its surface beside it; of two,
-    /// the more enclosed, the upper on a tie) filled with 0.
+    /// [`diagonal_leaks`]'s fills, round by round, cell by cell over every cell: every
+    /// diagonal between two outside cells that inside cells block on every face path through
+    /// its cube gets the end that may be filled (absent, no marked cell outside its surface
+    /// beside it; [`end_to_fill`] chooses) filled with 0.
     fn reference_seal(cells: &mut HashMap<[i32; 3], f32>) {
         let value =
             |c: &HashMap<[i32; 3], f32>, p: [i32; 3]| c.get(&p).copied().unwrap_or(f32::INFINITY);
         let add = |a: [i32; 3], b: [i32; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
-        let faces = [
-            [-1, 0, 0],
-            [1, 0, 0],
-            [0, -1, 0],
-            [0, 1, 0],
-            [0, 0, -1],
-            [0, 0, 1],
-        ];
+        let faces = FACE_STEPS.map(|s| s.map(|c| c as i32));
         for _ in 0..SEAL_ROUNDS {
             let c = &*cells;
             let ins = |p: [i32; 3]| value(c, p) <= 0.0;
@@ -1167,19 +1199,9 @@ mod tests {
                     leaks.push(q);
                 }
                 for q in leaks {
-                    let fill = match (back(p), back(q)) {
-                        (true, true) => {
-                            if enclosure(p) < enclosure(q) {
-                                p
-                            } else {
-                                q
-                            }
-                        }
-                        (true, false) => p,
-                        (false, true) => q,
-                        (false, false) => continue,
-                    };
-                    if fill.iter().all(|&c| c >= 0) {
+                    if let Some(fill) = end_to_fill(p, q, back, enclosure)
+                        && fill.iter().all(|&c| c >= 0)
+                    {
                         fills.push(fill);
                     }
                 }
