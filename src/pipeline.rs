@@ -25,7 +25,7 @@ use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplified, Simplify, Sim
 
 use crate::par;
 
-use voxoct_depth::carve::{CarveView, visibility};
+use voxoct_depth::carve::{CarveView, settle_disagreements, visibility};
 use voxoct_mesh::closure::{CLOSED_HITS, CLOSED_SDF, ClosedSurface, close_cells, closure_box};
 
 /// The frames of one snapshot and the turntable angle they were taken at.
@@ -413,6 +413,10 @@ pub fn reconstruct(
     on_stage(Stage::Filter);
     let t = Instant::now();
     let angles: Vec<f32> = snapshots.iter().map(|s| s.angle_deg).collect();
+    let readings: Vec<u32> = snapshots
+        .iter()
+        .map(|s| params.filter.readings(s.frames.len()))
+        .collect();
     let filtered = filter_snapshots(snapshots, &params.filter)?;
     timings.filter = t.elapsed();
 
@@ -430,8 +434,13 @@ pub fn reconstruct(
 
     on_stage(Stage::Mesh);
     let t = Instant::now();
-    let (meshed, disagreement_m, closed_surface) =
-        mesh_tree(config, params, &tree, filtered, &angles, &mut timings)?;
+    let (meshed, disagreement_m, closed_surface) = mesh_tree(
+        config,
+        params,
+        &tree,
+        (filtered, &angles, &readings),
+        &mut timings,
+    )?;
     timings.mesh = t.elapsed();
 
     Ok(Reconstruction {
@@ -552,8 +561,7 @@ fn mesh_tree(
     config: &ScannerConfig,
     params: &Params,
     tree: &Octree,
-    filtered: Vec<DepthFrame>,
-    angles: &[f32],
+    (filtered, angles, readings): (Vec<DepthFrame>, &[f32], &[u32]),
     timings: &mut Timings,
 ) -> Result<(Simplified, Option<f32>, Option<ClosedSurface>), PipelineError> {
     // `Params::validate` refused a `lod` beyond the depth of this root and leaf.
@@ -567,7 +575,7 @@ fn mesh_tree(
     let ((cells, closed_surface), (disagreement_m, agreement)) = par::join(
         || {
             if params.carve && options.solid {
-                let views = (filtered.as_slice(), angles);
+                let views = (filtered.as_slice(), angles, readings);
                 close_unseen_in_budget(
                     config,
                     &options,
@@ -642,11 +650,18 @@ fn close_unseen_in_budget(
     config: &ScannerConfig,
     options: &MeshOptions,
     (tree, depth): (&Octree, u32),
-    cells: Vec<Cell>,
-    (filtered, angles): (&[DepthFrame], &[f32]),
+    mut cells: Vec<Cell>,
+    (filtered, angles, readings): (&[DepthFrame], &[f32], &[u32]),
     budget: u64,
 ) -> (Vec<Cell>, Option<ClosedSurface>) {
     let grid = tree.grid(depth);
+    // The marked cells at full resolution, whichever grid the closure then runs on.
+    settle_disagreements(
+        &mut cells,
+        &carve_views(config, filtered, angles),
+        readings,
+        &grid,
+    );
     let floor = closure_floor(options, &grid);
     let Some((lo, hi)) = closure_box(&cells, &grid, floor) else {
         return (cells, None);
@@ -739,15 +754,7 @@ fn close_unseen(
     (filtered, angles): (&[DepthFrame], &[f32]),
     min_hits: u32,
 ) -> (Vec<Cell>, ClosedSurface) {
-    let views: Vec<CarveView<'_>> = filtered
-        .iter()
-        .zip(angles)
-        .map(|(frame, &angle)| CarveView {
-            frame,
-            intrinsics: config.sensor.intrinsics,
-            object_to_camera: config.rig.camera_to_object(angle).inverse(),
-        })
-        .collect();
+    let views = carve_views(config, filtered, angles);
     // Two standard deviations of the sensor's depth noise at the distance of the box's
     // centre (the object on the turntable, or the middle of a scene), plus half a cell
     // diagonal.
@@ -762,6 +769,23 @@ fn close_unseen(
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.
     close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, &seen)
+}
+
+/// The filtered snapshots as views for carving, each where its camera was.
+fn carve_views<'a>(
+    config: &ScannerConfig,
+    filtered: &'a [DepthFrame],
+    angles: &[f32],
+) -> Vec<CarveView<'a>> {
+    filtered
+        .iter()
+        .zip(angles)
+        .map(|(frame, &angle)| CarveView {
+            frame,
+            intrinsics: config.sensor.intrinsics,
+            object_to_camera: config.rig.camera_to_object(angle).inverse(),
+        })
+        .collect()
 }
 
 /// The snapshots of a recorded scan, ready for [`reconstruct`], with its scanner settings.
@@ -870,7 +894,7 @@ mod tests {
         let (lo, hi) = closure_box(&marked, &grid, closure_floor(&options, &grid)).unwrap();
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
         let solid = |budget: u64| {
-            let views = (filtered.as_slice(), angles.as_slice());
+            let views = (filtered.as_slice(), angles.as_slice(), &[1; 8][..]);
             let (cells, surface) = close_unseen_in_budget(
                 &config,
                 &options,

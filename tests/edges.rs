@@ -57,12 +57,14 @@ fn an_exact_box_keeps_its_size() {
     assert!(share == 0.0, "{share}");
 }
 
-/// With the simulated sensor's noise, the faces stay where the box's are: under 2 % of the
-/// mesh's vertices lie more than one leaf outside the box (15–16 % when the fill and the
-/// closure filled the dents of the ragged outer layer, which the noise makes two or three
-/// layers deep), and the base is on the platform. The bounding box itself is set by a few
-/// bumps of single-view readings at the fringe of the noise: up to 2 leaves out on some
-/// faces (2.4 before).
+/// With the simulated sensor's noise, the faces stay where the box's are: under 0.5 % of
+/// the mesh's vertices lie more than one leaf outside the box (0.7 % before the views
+/// settled the cells they disagree on, 15–16 % when the fill and the closure filled the
+/// dents of the ragged outer layer, which the noise makes two or three layers deep), and
+/// the base is on the platform. The bounding box itself is set by a few bumps at the
+/// fringe of the noise, most near the vertical edges: up to 1.3 leaves out on this seed
+/// (2 before the views settled the cells marked by a single view's outlying readings, 2.4
+/// before that).
 #[test]
 fn a_noisy_box_keeps_its_faces_in_place() {
     let (out, share, leaf) = face_offsets(SimConfig {
@@ -70,14 +72,14 @@ fn a_noisy_box_keeps_its_faces_in_place() {
         ..SimConfig::default()
     });
     assert!(
-        share < 0.02,
-        "{:.1} % of the vertices beyond one leaf",
+        share < 0.005,
+        "{:.2} % of the vertices beyond one leaf",
         share * 100.0
     );
     assert!(out[2].abs() <= leaf, "base {:.2} mm off", out[2] * 1e3);
     for (face, d) in ["-x", "+x", "base", "top", "-z", "+z"].iter().zip(out) {
         assert!(
-            d <= 2.1 * leaf,
+            d <= 1.3 * leaf,
             "{face} face {:.2} mm out: {out:?}",
             d * 1e3
         );

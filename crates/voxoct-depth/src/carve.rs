@@ -13,10 +13,14 @@
 //! seen on a surface only, or not seen at all. The meshing's closure of unseen space
 //! (`voxoct_mesh::closure`) takes the cells seen empty as outside and decides the unseen
 //! ones with a minimum cut.
+//!
+//! [`settle_disagreements`] weighs the same readings against the marked cells' own signed
+//! distances, where the two disagree on the side of the surface a cell lies on.
 
+use crate::noise::kinect_v1_sigma;
 use crate::{DepthFrame, Intrinsics};
-use voxoct_core::GridSpec;
 use voxoct_core::glam::{Affine3A, UVec3, Vec3};
+use voxoct_core::{Cell, GridSpec, Real};
 
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
@@ -89,6 +93,105 @@ impl CarveView<'_> {
             ViewSees::NearBehind
         }
     }
+
+    /// The reading at `p`'s pixel minus `p`'s depth (positive: `p` lies in front of the
+    /// surface this view saw) and `p`'s depth, metres; `None` outside the frame, behind
+    /// the camera, or when the pixel or one of its four neighbours has no reading (the
+    /// border of a hole or of the frame, where readings flicker).
+    #[inline]
+    fn ahead_of_reading(&self, p: Vec3) -> Option<(f32, f32)> {
+        let q = self.object_to_camera.transform_point3(p);
+        let (u, v, z) = self.intrinsics.project(q)?;
+        let (u, v) = (pixel(u, self.frame.width)?, pixel(v, self.frame.height)?);
+        let w = self.frame.width as usize;
+        if u == 0 || v == 0 || u + 1 >= w || v + 1 >= self.frame.height as usize {
+            return None;
+        }
+        let data = &self.frame.data;
+        let i = v * w + u;
+        if [i, i - 1, i + 1, i - w, i + w]
+            .iter()
+            .any(|&k| data[k] == 0)
+        {
+            return None;
+        }
+        Some((f32::from(data[i]) * self.frame.unit_m - z, z))
+    }
+}
+
+/// Half a cell's diagonal, in cells: the farthest a surface through a cell lies from its
+/// centre.
+const HALF_DIAGONAL: f32 = 0.866;
+
+/// Settles the marked cells (`hits > 0`) on which their own triangles and the views
+/// disagree about the side of the surface they lie on. Returns how many it changed.
+///
+/// A marked cell's value is the mean signed distance from its centre to the planes of the
+/// triangles that overlap it ([`Cell::mean_sdf`], negative behind the surface). At the
+/// fringe of the noise a few triangles of one view can put a cell that lies in front of
+/// the surface behind it (a bump a cell high on a flat face, or at an edge) or the other
+/// way round, while every other view's readings pass it. Each view says where the cell
+/// lies from its reading at the cell's pixel, as in TSDF fusion (Curless and Levoy, 1996):
+/// the reading minus the cell's depth, clipped to the band `T = 2σ + √3/2 · cell` (σ the
+/// Kinect v1's noise at that depth, [`kinect_v1_sigma`], over the square root of the
+/// frames averaged into the view, `readings`), ignored farther than `T` behind the
+/// reading (hidden there, the view says nothing of the cell) and where
+/// [`CarveView`]'s pixel or one of its four neighbours has no reading. The views' mean is
+/// weighed by `1/σ²`.
+///
+/// Where that mean and the cell's own value lie on different sides of the surface, the
+/// cell's value becomes their mean, each triangle that marked the cell counted as one
+/// reading and each view as one: the side with more readings wins, by how far they put
+/// the surface. Where they agree the cell keeps its value: how deep behind the seen
+/// surface a cell lies (which sets the back of a wall no view saw) stays the triangles'.
+///
+/// `readings[i]`: the frames averaged into `views[i]` (1 for a single frame); a missing
+/// or zero entry counts as 1.
+pub fn settle_disagreements(
+    cells: &mut [Cell],
+    views: &[CarveView<'_>],
+    readings: &[u32],
+    grid: &GridSpec,
+) -> usize {
+    let settle = |c: &mut Cell| -> bool {
+        if c.hits == 0 {
+            return false;
+        }
+        let own = c.mean_sdf();
+        let p = grid.cell_center(c.coord);
+        let (mut sum, mut weights, mut count) = (0.0f32, 0.0f32, 0u32);
+        for (k, view) in views.iter().enumerate() {
+            let Some((s, z)) = view.ahead_of_reading(p) else {
+                continue;
+            };
+            let n = readings.get(k).copied().unwrap_or(1).max(1) as f32;
+            let sigma = kinect_v1_sigma(z) / n.sqrt();
+            let band = 2.0 * sigma + HALF_DIAGONAL * grid.cell;
+            if !(s.is_finite() && sigma > 0.0) || s < -band {
+                continue;
+            }
+            let w = 1.0 / (sigma * sigma);
+            sum += w * s.min(band);
+            weights += w;
+            count += 1;
+        }
+        if count == 0 {
+            return false;
+        }
+        let seen = sum / weights;
+        if (own <= 0.0) == (seen <= 0.0) || !seen.is_finite() {
+            return false;
+        }
+        let hits = c.hits as f32;
+        let settled = (own * hits + seen * count as f32) / (hits + count as f32);
+        c.sdf_sum = (settled * hits) as Real;
+        true
+    };
+    #[cfg(feature = "parallel")]
+    let changed = cells.par_iter_mut().map(|c| usize::from(settle(c))).sum();
+    #[cfg(not(feature = "parallel"))]
+    let changed = cells.iter_mut().map(|c| usize::from(settle(c))).sum();
+    changed
 }
 
 /// Cells per side of a carving block: blocks are pre-classified per view from a depth
@@ -434,6 +537,88 @@ mod tests {
         let mut f = DepthFrame::empty(i.width, i.height, 0.001);
         f.data.fill((dist * 1000.0) as u16);
         f
+    }
+
+    /// The cells of `settle_disagreements`'s test: 2 mm cells around the origin, the wall
+    /// of [`wall`] through z = 0, column (4, 4) of centres at x = y = 1 mm.
+    fn settle_grid() -> GridSpec {
+        GridSpec {
+            origin: Vec3::splat(-0.008),
+            cell: 0.002,
+            resolution: 8,
+        }
+    }
+
+    fn marked(z: u32, hits: u32, mean_sdf: f32) -> Cell {
+        Cell {
+            coord: UVec3::new(4, 4, z),
+            hits,
+            sdf_sum: mean_sdf * hits as f32,
+        }
+    }
+
+    #[test]
+    fn views_settle_the_cells_that_disagree_with_them_and_leave_the_others() {
+        let rig = Rig {
+            tilt_deg: 0.0,
+            sensor_position_m: Vec3::new(0.0, 0.0, 1.0),
+        };
+        let frame = wall(1.0);
+        let view = CarveView {
+            frame: &frame,
+            intrinsics: Intrinsics::KINECT_V1,
+            object_to_camera: rig.camera_to_object(0.0).inverse(),
+        };
+        let grid = settle_grid();
+        // Centres: z = 4 lies 1 mm in front of the wall, z = 3 1 mm behind it, z = 1 5 mm
+        // behind it (beyond the band: 2σ/√4 + √3/2 · 2 mm = 3.2 mm at 1 m).
+        assert!((grid.cell_center(UVec3::new(4, 4, 4)).z - 0.001).abs() < 1e-6);
+        let mut cells = vec![
+            // A bump: one triangle puts a cell in front of the wall behind the surface.
+            marked(4, 1, -0.0005),
+            // Ten triangles against three views: the cell stays behind, nearer the surface.
+            marked(4, 10, -0.0005),
+            // Agreeing with the views: left as it is.
+            marked(3, 2, -0.0003),
+            marked(4, 3, 0.0004),
+            // Hidden behind the wall for every view: the views say nothing.
+            marked(1, 1, 0.0004),
+            // Not marked.
+            marked(4, 0, 0.0),
+        ];
+        let before = cells.clone();
+        let views = [view; 3];
+        assert_eq!(settle_disagreements(&mut cells, &views, &[4; 3], &grid), 2);
+        // (1 · -0.5 + 3 · 1) / 4 mm and (10 · -0.5 + 3 · 1) / 13 mm.
+        assert!(
+            (cells[0].mean_sdf() - 0.000_625).abs() < 2e-5,
+            "{:?}",
+            cells[0]
+        );
+        assert!(
+            (cells[1].mean_sdf() + 0.002 / 13.0).abs() < 2e-5,
+            "{:?}",
+            cells[1]
+        );
+        assert_eq!(cells[0].hits, 1);
+        assert_eq!(&cells[2..], &before[2..]);
+
+        // Where the pixel or a neighbour of it has no reading, a view says nothing.
+        let mut holed = wall(1.0);
+        let (w, h) = (holed.width as usize, holed.height as usize);
+        for v in h / 2 - 40..h / 2 + 40 {
+            holed.data[v * w + w / 2 - 40..v * w + w / 2 + 40].fill(0);
+        }
+        let blind = CarveView {
+            frame: &holed,
+            ..view
+        };
+        let mut cells = before.clone();
+        assert_eq!(
+            settle_disagreements(&mut cells, &[blind; 3], &[4; 3], &grid),
+            0
+        );
+        assert_eq!(cells, before);
     }
 
     #[test]

@@ -305,6 +305,19 @@ impl FilterChain {
         &self.stages
     }
 
+    /// How many of a snapshot's `frames` the chain combines into each pixel, at most: 1
+    /// for [`Filter::Basic`], all of them for the mean and the median. (The noise of the
+    /// result falls about as the square root of it, as
+    /// [`crate::carve::settle_disagreements`] takes it.)
+    #[must_use]
+    pub fn readings(&self, frames: usize) -> u32 {
+        let n = u32::try_from(frames).unwrap_or(u32::MAX).max(1);
+        match self.stages[0] {
+            Filter::Basic | Filter::Outlier { .. } => 1,
+            Filter::Average | Filter::AverageDiscard | Filter::Median { .. } => n,
+        }
+    }
+
     /// Filters the frames of one snapshot into one frame of the same size; its unit is the
     /// frames' unit, or a fraction of it after [`Filter::Average`] (read depths through
     /// [`DepthFrame::depth_m`] or `unit_m`).
