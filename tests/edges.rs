@@ -62,9 +62,9 @@ fn an_exact_box_keeps_its_size() {
 /// settled the cells they disagree on, 15–16 % when the fill and the closure filled the
 /// dents of the ragged outer layer, which the noise makes two or three layers deep), and
 /// the base is on the platform. The bounding box itself is set by a few bumps at the
-/// fringe of the noise, most near the vertical edges: up to 1.3 leaves out on this seed
-/// (2 before the views settled the cells marked by a single view's outlying readings, 2.4
-/// before that).
+/// fringe of the noise near the vertical edges: up to 1.03 leaves out on this seed (1.0 mm
+/// at 0.98 mm leaves; 2 leaves before the views settled the cells marked by a single
+/// view's outlying readings, 2.4 before that).
 #[test]
 fn a_noisy_box_keeps_its_faces_in_place() {
     let (out, share, leaf) = face_offsets(SimConfig {
@@ -79,7 +79,7 @@ fn a_noisy_box_keeps_its_faces_in_place() {
     assert!(out[2].abs() <= leaf, "base {:.2} mm off", out[2] * 1e3);
     for (face, d) in ["-x", "+x", "base", "top", "-z", "+z"].iter().zip(out) {
         assert!(
-            d <= 1.3 * leaf,
+            d <= 1.1 * leaf,
             "{face} face {:.2} mm out: {out:?}",
             d * 1e3
         );

@@ -95,11 +95,12 @@ impl CarveView<'_> {
     }
 
     /// The reading at `p`'s pixel minus `p`'s depth (positive: `p` lies in front of the
-    /// surface this view saw) and `p`'s depth, metres; `None` outside the frame, behind
-    /// the camera, or when the pixel or one of its four neighbours has no reading (the
-    /// border of a hole or of the frame, where readings flicker).
+    /// surface this view saw), `p`'s depth, and the largest difference between the reading
+    /// and its four neighbours', metres; `None` outside the frame, behind the camera, or
+    /// when the pixel or one of its four neighbours has no reading (the border of a hole
+    /// or of the frame, where readings flicker).
     #[inline]
-    fn ahead_of_reading(&self, p: Vec3) -> Option<(f32, f32)> {
+    fn ahead_of_reading(&self, p: Vec3) -> Option<(f32, f32, f32)> {
         let q = self.object_to_camera.transform_point3(p);
         let (u, v, z) = self.intrinsics.project(q)?;
         let (u, v) = (pixel(u, self.frame.width)?, pixel(v, self.frame.height)?);
@@ -115,7 +116,17 @@ impl CarveView<'_> {
         {
             return None;
         }
-        Some((f32::from(data[i]) * self.frame.unit_m - z, z))
+        let d = data[i];
+        let jump = [i - 1, i + 1, i - w, i + w]
+            .iter()
+            .map(|&k| data[k].abs_diff(d))
+            .max()
+            .unwrap_or(0);
+        Some((
+            f32::from(d) * self.frame.unit_m - z,
+            z,
+            f32::from(jump) * self.frame.unit_m,
+        ))
     }
 }
 
@@ -137,7 +148,9 @@ const HALF_DIAGONAL: f32 = 0.866;
 /// frames averaged into the view, `readings`), ignored farther than `T` behind the
 /// reading (hidden there, the view says nothing of the cell) and where
 /// [`CarveView`]'s pixel or one of its four neighbours has no reading. The views' mean is
-/// weighed by `1/σ²`.
+/// weighed by `1/σ²`, with the σ of a single frame at a depth edge (a neighbour's reading
+/// more than `T` away): there the Kinect's readings flicker between the two sides or drop
+/// out, and the pixel's mean may rest on one frame.
 ///
 /// Where that mean and the cell's own value lie on different sides of the surface, the
 /// cell's value becomes their mean, each triangle that marked the cell counted as one
@@ -161,12 +174,16 @@ pub fn settle_disagreements(
         let p = grid.cell_center(c.coord);
         let (mut sum, mut weights, mut count) = (0.0f32, 0.0f32, 0u32);
         for (k, view) in views.iter().enumerate() {
-            let Some((s, z)) = view.ahead_of_reading(p) else {
+            let Some((s, z, jump)) = view.ahead_of_reading(p) else {
                 continue;
             };
             let n = readings.get(k).copied().unwrap_or(1).max(1) as f32;
-            let sigma = kinect_v1_sigma(z) / n.sqrt();
+            let mut sigma = kinect_v1_sigma(z) / n.sqrt();
             let band = 2.0 * sigma + HALF_DIAGONAL * grid.cell;
+            if jump > band {
+                // A depth edge: the pixel flickers, its mean may rest on one frame.
+                sigma = kinect_v1_sigma(z);
+            }
             if !(s.is_finite() && sigma > 0.0) || s < -band {
                 continue;
             }
@@ -619,6 +636,47 @@ mod tests {
             0
         );
         assert_eq!(cells, before);
+    }
+
+    /// At a depth edge a view's reading counts as a single frame's: a clean view that puts
+    /// the cell 1 mm in front outweighs one whose edge pixel puts it 1 mm behind.
+    #[test]
+    fn a_reading_at_a_depth_edge_counts_as_one_frame() {
+        let rig = Rig {
+            tilt_deg: 0.0,
+            sensor_position_m: Vec3::new(0.0, 0.0, 1.0),
+        };
+        let grid = settle_grid();
+        let to_camera = rig.camera_to_object(0.0).inverse();
+        let p = grid.cell_center(UVec3::new(4, 4, 4));
+        let (u, v, _) = Intrinsics::KINECT_V1
+            .project(to_camera.transform_point3(p))
+            .unwrap();
+        let (u, v) = (u.round() as usize, v.round() as usize);
+        let clean = wall(1.0);
+        // 1 mm nearer than the cell, beside a background pixel 1 m farther.
+        let mut edge = wall(0.998);
+        let w = edge.width as usize;
+        edge.data[v * w + u + 1] = 2000;
+        let view = |frame| CarveView {
+            frame,
+            intrinsics: Intrinsics::KINECT_V1,
+            object_to_camera: to_camera,
+        };
+        let mut cells = vec![marked(4, 2, -0.0005)];
+        let views = [view(&clean), view(&edge)];
+        assert_eq!(settle_disagreements(&mut cells, &views, &[4, 4], &grid), 1);
+        // The views' mean (4 · 1 − 1 · 1) / 5 mm, then (2 · −0.5 + 2 · 0.6) / 4 mm.
+        assert!(
+            (cells[0].mean_sdf() - 0.000_05).abs() < 2e-5,
+            "{:?}",
+            cells[0]
+        );
+        // Without the edge both views weigh the same: their mean is 0, on the cell's side.
+        let flat = wall(0.998);
+        let mut cells = vec![marked(4, 2, -0.0005)];
+        let views = [view(&clean), view(&flat)];
+        assert_eq!(settle_disagreements(&mut cells, &views, &[4, 4], &grid), 0);
     }
 
     #[test]
