@@ -194,7 +194,7 @@ if want validity && [ -d "$data" ]; then
     echo "by the project's exact check (\`--stats\`: \`self_intersecting_triangles\`), how many outputs"
     echo "were not closed or not a valid solid, and (with pymeshlab) MeshLab's count of"
     echo "self-intersecting faces on the written file, summed over the seven scans. MeshLab's test is"
-    echo "a floating-point one: on nearly coplanar neighbours of an unsimplified mesh it flags pairs"
+    echo "a floating-point one: on nearly coplanar neighbours (an unsimplified or unsmoothed mesh) it flags pairs"
     echo "that an exact rational test shows to be apart (\`scripts/meshlab_pairs.py MESH\` checks"
     echo "every pair it flags). The genus (\`mesh_genus\`: handles, that is tunnels, of the closed"
     echo "meshes) is summed too: the ground truths' sum is 1 (the rocker's hole)."
