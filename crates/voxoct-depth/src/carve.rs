@@ -679,6 +679,69 @@ mod tests {
         assert_eq!(settle_disagreements(&mut cells, &views, &[4, 4], &grid), 0);
     }
 
+    proptest::proptest! {
+        /// Against flat walls seen head-on, where every view's reading of a cell is known
+        /// exactly, every cell comes out as the rule says, cell by cell: untouched unless
+        /// marked, seen by some view within the band and on the other side of the surface
+        /// than its own value; then the readings' mean, its hits and coordinate kept.
+        #[test]
+        fn settling_follows_the_rule_cell_by_cell(
+            cells in proptest::collection::vec(
+                (0u32..8, 0u32..8, 0u32..8, 0u32..12, -3.0f32..3.0),
+                1..40,
+            ),
+            views in 1usize..5,
+            frames in 1u32..12,
+        ) {
+            let rig = Rig {
+                tilt_deg: 0.0,
+                sensor_position_m: Vec3::new(0.0, 0.0, 1.0),
+            };
+            let frame = wall(1.0);
+            let view = CarveView {
+                frame: &frame,
+                intrinsics: Intrinsics::KINECT_V1,
+                object_to_camera: rig.camera_to_object(0.0).inverse(),
+            };
+            let grid = settle_grid();
+            let mut cells: Vec<Cell> = cells
+                .into_iter()
+                .map(|(x, y, z, hits, mm)| Cell {
+                    coord: UVec3::new(x, y, z),
+                    hits,
+                    sdf_sum: mm * 1e-3 * hits as f32,
+                })
+                .collect();
+            let before = cells.clone();
+            let changed =
+                settle_disagreements(&mut cells, &vec![view; views], &vec![frames; views], &grid);
+            let mut expected_changes = 0;
+            for (c, b) in cells.iter().zip(&before) {
+                proptest::prop_assert_eq!((c.coord, c.hits), (b.coord, b.hits));
+                let p = grid.cell_center(b.coord);
+                // The wall is z = 0; the camera looks down -z from z = 1.
+                let ahead = p.z;
+                let sigma = kinect_v1_sigma(1.0 - p.z) / (frames as f32).sqrt();
+                let band = 2.0 * sigma + HALF_DIAGONAL * grid.cell;
+                let own = b.mean_sdf();
+                let seen = ahead.min(band);
+                let settles = b.hits > 0 && ahead >= -band && (own <= 0.0) != (seen <= 0.0);
+                if settles {
+                    expected_changes += 1;
+                    let (h, n) = (b.hits as f32, views as f32);
+                    let want = (own * h + seen * n) / (h + n);
+                    proptest::prop_assert!(
+                        (c.mean_sdf() - want).abs() < 1e-5,
+                        "{:?} -> {:?}, want {}", b, c, want
+                    );
+                } else {
+                    proptest::prop_assert_eq!(c, b);
+                }
+            }
+            proptest::prop_assert_eq!(changed, expected_changes);
+        }
+    }
+
     #[test]
     fn pixel_rounds_like_round() {
         for x in [
