@@ -332,6 +332,10 @@ pub struct Reconstruction {
     /// caps over unseen openings); counted on the closure's cells before marching, in leaf
     /// faces. `None` when nothing was closed ([`Params::carve`] off, or not solid).
     pub closed_surface: Option<ClosedSurface>,
+    /// Marked cells whose own triangles and the views' readings disagreed on the side of the
+    /// surface they lie on, settled by both before the closure
+    /// ([`voxoct_depth::carve::settle_disagreements`]); 0 when nothing was closed.
+    pub settled_cells: usize,
     /// Whether the mesh stage proved the mesh free of self-intersections
     /// ([`voxoct_mesh::mesh_cells_simplified`]: the smoothing's untangling ran the exact test
     /// over every triangle and dropping small pieces and simplifying keep it, or, for a mesh
@@ -434,7 +438,7 @@ pub fn reconstruct(
 
     on_stage(Stage::Mesh);
     let t = Instant::now();
-    let (meshed, disagreement_m, closed_surface) = mesh_tree(
+    let (meshed, disagreement_m, (closed_surface, settled_cells)) = mesh_tree(
         config,
         params,
         &tree,
@@ -450,6 +454,7 @@ pub fn reconstruct(
         timings,
         disagreement_m,
         closed_surface,
+        settled_cells,
         self_intersection_free: meshed.certified,
         marched_triangles: meshed.marched_triangles,
         simplify: meshed.simplify,
@@ -553,6 +558,11 @@ fn build_octree(
     Ok(tree)
 }
 
+/// What the closure did: the closed surface (`None`: nothing closed) and how many marked
+/// cells the views settled ([`Reconstruction::closed_surface`],
+/// [`Reconstruction::settled_cells`]).
+type Closed = (Option<ClosedSurface>, usize);
+
 /// Stage 4: the marked leaves (at `lod` levels coarser) meshed; in solid mode what no
 /// frame saw is closed first ([`Params::carve`]); small pieces dropped, then simplified. The
 /// steps' times go into `timings`. The snapshots' disagreement
@@ -563,7 +573,7 @@ fn mesh_tree(
     tree: &Octree,
     (filtered, angles, readings): (Vec<DepthFrame>, &[f32], &[u32]),
     timings: &mut Timings,
-) -> Result<(Simplified, Option<f32>, Option<ClosedSurface>), PipelineError> {
+) -> Result<(Simplified, Option<f32>, Closed), PipelineError> {
     // `Params::validate` refused a `lod` beyond the depth of this root and leaf.
     let depth = tree.depth() - params.lod;
     let options = mesh_options(config, params);
@@ -572,7 +582,7 @@ fn mesh_tree(
     let t = Instant::now();
     // The closure's minimum cut is serial: the agreement check (serial too) takes the other
     // core meanwhile.
-    let ((cells, closed_surface), (disagreement_m, agreement)) = par::join(
+    let ((cells, closed_surface, settled), (disagreement_m, agreement)) = par::join(
         || {
             if params.carve && options.solid {
                 let views = (filtered.as_slice(), angles, readings);
@@ -585,7 +595,7 @@ fn mesh_tree(
                     CLOSURE_BUDGET_CELLS,
                 )
             } else {
-                (cells, None)
+                (cells, None, 0)
             }
         },
         || {
@@ -613,7 +623,7 @@ fn mesh_tree(
     timings.march = out.times.march;
     timings.smooth = out.times.smooth;
     timings.simplify = out.times.simplify;
-    Ok((out, disagreement_m, closed_surface))
+    Ok((out, disagreement_m, (closed_surface, settled)))
 }
 
 /// The meshing options of `params` for a scan with `config`: in solid mode with
@@ -636,7 +646,9 @@ const CLOSURE_BUDGET_CELLS: u64 = 1 << 25;
 /// [`close_unseen`] on the cells of `depth` of `tree`, or, when their closure box exceeds
 /// `budget` cells ([`CLOSURE_BUDGET_CELLS`]), on the grid `k` levels coarser whose box fits
 /// (the closure's other inputs unchanged); every cell of a coarse cell it adds is then added
-/// at `depth`. The marked cells stay at full resolution.
+/// at `depth`. The marked cells stay at full resolution, settled by the views first
+/// ([`settle_disagreements`], `readings` frames averaged per view); returns the cells, the
+/// closed surface and how many cells the views settled.
 ///
 /// Why a coarser grid is right there: the closure decides space that no view saw, where any
 /// surface is invented, so its resolution bounds no measured detail; it only has to be
@@ -653,10 +665,10 @@ fn close_unseen_in_budget(
     mut cells: Vec<Cell>,
     (filtered, angles, readings): (&[DepthFrame], &[f32], &[u32]),
     budget: u64,
-) -> (Vec<Cell>, Option<ClosedSurface>) {
+) -> (Vec<Cell>, Option<ClosedSurface>, usize) {
     let grid = tree.grid(depth);
     // The marked cells at full resolution, whichever grid the closure then runs on.
-    settle_disagreements(
+    let settled = settle_disagreements(
         &mut cells,
         &carve_views(config, filtered, angles),
         readings,
@@ -664,7 +676,7 @@ fn close_unseen_in_budget(
     );
     let floor = closure_floor(options, &grid);
     let Some((lo, hi)) = closure_box(&cells, &grid, floor) else {
-        return (cells, None);
+        return (cells, None, settled);
     };
     let volume = |lo: UVec3, hi: UVec3| {
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
@@ -680,7 +692,7 @@ fn close_unseen_in_budget(
             (filtered, angles),
             options.min_hits,
         );
-        return (cells, Some(surface));
+        return (cells, Some(surface), settled);
     }
     // The finest coarser grid whose box fits (its box holds the fine one's cells).
     let mut k = 1;
@@ -692,7 +704,7 @@ fn close_unseen_in_budget(
     let known = coarse.len();
     let coarse_floor = closure_floor(options, &coarse_grid);
     let Some(coarse_box) = closure_box(&coarse, &coarse_grid, coarse_floor) else {
-        return (cells, None);
+        return (cells, None, settled);
     };
     let (closed, coarse_surface) = close_unseen(
         config,
@@ -730,7 +742,7 @@ fn close_unseen_in_budget(
         faces: coarse_surface.faces * leaf_faces,
         invented: coarse_surface.invented * leaf_faces,
     };
-    (cells, Some(surface))
+    (cells, Some(surface), settled)
 }
 
 /// The layer below which [`close_unseen`] excludes cells (the floor's, else none).
@@ -895,7 +907,7 @@ mod tests {
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
         let solid = |budget: u64| {
             let views = (filtered.as_slice(), angles.as_slice(), &[1; 8][..]);
-            let (cells, surface) = close_unseen_in_budget(
+            let (cells, surface, _) = close_unseen_in_budget(
                 &config,
                 &options,
                 (&tree, depth),

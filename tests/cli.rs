@@ -53,6 +53,7 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
         "mesh_vertices",
         "mesh_genus",
         "unseen_surface_share",
+        "settled_cells",
         "closed_manifold",
         "peak_rss_bytes",
     ] {
@@ -100,6 +101,8 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
     // base on the platform), never all of it.
     let unseen = stats["unseen_surface_share"].as_f64().expect("a share");
     assert!(unseen > 0.0 && unseen < 1.0, "{stats}");
+    // How many marked cells the views settled: a count.
+    assert!(stats["settled_cells"].as_u64().is_some(), "{stats}");
     assert_eq!(stats["snapshots"], 4);
     // mm by default: a 12 cm sphere is ~120 units wide.
     let soup = voxoct::stl::read_file(dir.path().join("s.stl")).unwrap();

@@ -119,6 +119,10 @@ pub struct Stats {
     /// Share of the closed solid's surface that no view saw, which the closure invented
     /// (leaf faces of the closure's cells, before marching; null when nothing was closed).
     pub unseen_surface_share: Option<f64>,
+    /// Marked cells that the views' readings put on the other side of the surface than
+    /// their own triangles did, settled by both before the closure (0: none, or nothing
+    /// closed).
+    pub settled_cells: usize,
     pub mesh_volume_m3: f64,
     pub mesh_area_m2: f64,
     pub closed_manifold: bool,
@@ -195,6 +199,7 @@ impl Stats {
             mesh_components: mstats.components,
             mesh_genus: mstats.genus().filter(|_| closed),
             unseen_surface_share: r.closed_surface.and_then(|c| c.invented_share()),
+            settled_cells: r.settled_cells,
             mesh_volume_m3: mstats.volume,
             mesh_area_m2: mstats.area,
             closed_manifold: closed,
