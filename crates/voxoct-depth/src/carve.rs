@@ -158,6 +158,11 @@ const HALF_DIAGONAL: f32 = 0.866;
 /// the surface. Where they agree the cell keeps its value: how deep behind the seen
 /// surface a cell lies (which sets the back of a wall no view saw) stays the triangles'.
 ///
+/// With fewer than two views nothing changes: the one view's readings are the very ones
+/// its triangles were made of, so there is nothing to weigh them against (on the real NYU
+/// frame at 5 mm, settling against the same view only resampled the noise: 9466 cells
+/// changed, and the room's genus went from 283 to 555).
+///
 /// `readings[i]`: the frames averaged into `views[i]` (1 for a single frame); a missing
 /// or zero entry counts as 1.
 pub fn settle_disagreements(
@@ -166,6 +171,9 @@ pub fn settle_disagreements(
     readings: &[u32],
     grid: &GridSpec,
 ) -> usize {
+    if views.len() < 2 {
+        return 0;
+    }
     let settle = |c: &mut Cell| -> bool {
         if c.hits == 0 {
             return false;
@@ -604,6 +612,9 @@ mod tests {
             marked(4, 0, 0.0),
         ];
         let before = cells.clone();
+        // One view: its readings are those its triangles were made of.
+        assert_eq!(settle_disagreements(&mut cells, &[view], &[4], &grid), 0);
+        assert_eq!(cells, before);
         let views = [view; 3];
         assert_eq!(settle_disagreements(&mut cells, &views, &[4; 3], &grid), 2);
         // (1 · -0.5 + 3 · 1) / 4 mm and (10 · -0.5 + 3 · 1) / 13 mm.
@@ -683,7 +694,8 @@ mod tests {
         /// Against flat walls seen head-on, where every view's reading of a cell is known
         /// exactly, every cell comes out as the rule says, cell by cell: untouched unless
         /// marked, seen by some view within the band and on the other side of the surface
-        /// than its own value; then the readings' mean, its hits and coordinate kept.
+        /// than its own value, and two views or more; then the readings' mean, its hits and
+        /// coordinate kept.
         #[test]
         fn settling_follows_the_rule_cell_by_cell(
             cells in proptest::collection::vec(
@@ -725,7 +737,8 @@ mod tests {
                 let band = 2.0 * sigma + HALF_DIAGONAL * grid.cell;
                 let own = b.mean_sdf();
                 let seen = ahead.min(band);
-                let settles = b.hits > 0 && ahead >= -band && (own <= 0.0) != (seen <= 0.0);
+                let settles =
+                    views > 1 && b.hits > 0 && ahead >= -band && (own <= 0.0) != (seen <= 0.0);
                 if settles {
                     expected_changes += 1;
                     let (h, n) = (b.hits as f32, views as f32);
