@@ -667,13 +667,9 @@ fn close_unseen_in_budget(
     budget: u64,
 ) -> (Vec<Cell>, Option<ClosedSurface>, usize) {
     let grid = tree.grid(depth);
+    let views = carve_views(config, filtered, angles);
     // The marked cells at full resolution, whichever grid the closure then runs on.
-    let settled = settle_disagreements(
-        &mut cells,
-        &carve_views(config, filtered, angles),
-        readings,
-        &grid,
-    );
+    let settled = settle_disagreements(&mut cells, &views, readings, &grid);
     let floor = closure_floor(options, &grid);
     let Some((lo, hi)) = closure_box(&cells, &grid, floor) else {
         return (cells, None, settled);
@@ -689,7 +685,7 @@ fn close_unseen_in_budget(
             cells,
             (lo, hi),
             floor,
-            (filtered, angles),
+            &views,
             options.min_hits,
         );
         return (cells, Some(surface), settled);
@@ -712,7 +708,7 @@ fn close_unseen_in_budget(
         coarse,
         coarse_box,
         coarse_floor,
-        (filtered, angles),
+        &views,
         options.min_hits,
     );
     // `close_cells` appends the cells it adds after the ones it was given; a coarse cell it
@@ -763,10 +759,9 @@ fn close_unseen(
     cells: Vec<Cell>,
     (lo, hi): (UVec3, UVec3),
     floor: u32,
-    (filtered, angles): (&[DepthFrame], &[f32]),
+    views: &[CarveView<'_>],
     min_hits: u32,
 ) -> (Vec<Cell>, ClosedSurface) {
-    let views = carve_views(config, filtered, angles);
     // Two standard deviations of the sensor's depth noise at the distance of the box's
     // centre (the object on the turntable, or the middle of a scene), plus half a cell
     // diagonal.
@@ -777,7 +772,7 @@ fn close_unseen(
     let centre = (grid.cell_center(lo) + grid.cell_center(hi)) * 0.5;
     let distance = centre.distance(camera);
     let margin = 2.0 * kinect_v1_sigma(distance) + 0.87 * grid.cell;
-    let seen = visibility(&views, grid, lo, hi, margin);
+    let seen = visibility(views, grid, lo, hi, margin);
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.
     close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, &seen)

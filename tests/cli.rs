@@ -101,8 +101,11 @@ fn a_small_simulated_scan_writes_a_closed_stl_stats_and_a_preview() {
     // base on the platform), never all of it.
     let unseen = stats["unseen_surface_share"].as_f64().expect("a share");
     assert!(unseen > 0.0 && unseen < 1.0, "{stats}");
-    // How many marked cells the views settled: a count.
-    assert!(stats["settled_cells"].as_u64().is_some(), "{stats}");
+    // The views settled some of this noisy scan's marked cells (1840 of 19203 leaves when
+    // written), never all of them.
+    let settled = stats["settled_cells"].as_u64().expect("a count");
+    let leaves = stats["leaves"].as_u64().expect("a count");
+    assert!(settled > 0 && settled < leaves, "{stats}");
     assert_eq!(stats["snapshots"], 4);
     // mm by default: a 12 cm sphere is ~120 units wide.
     let soup = voxoct::stl::read_file(dir.path().join("s.stl")).unwrap();

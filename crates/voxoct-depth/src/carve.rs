@@ -69,13 +69,21 @@ fn pixel(x: f32, len: u32) -> Option<usize> {
 }
 
 impl CarveView<'_> {
+    /// The pixel `p` projects to, as `(u, v)`, and `p`'s depth; `None` behind the camera
+    /// or outside the frame.
+    #[inline]
+    fn pixel_of(&self, p: Vec3) -> Option<((usize, usize), f32)> {
+        let q = self.object_to_camera.transform_point3(p);
+        let (u, v, z) = self.intrinsics.project(q)?;
+        Some((
+            (pixel(u, self.frame.width)?, pixel(v, self.frame.height)?),
+            z,
+        ))
+    }
+
     #[inline]
     fn classify(&self, p: Vec3, margin: f32) -> ViewSees {
-        let q = self.object_to_camera.transform_point3(p);
-        let Some((u, v, z)) = self.intrinsics.project(q) else {
-            return ViewSees::Unknown;
-        };
-        let (Some(u), Some(v)) = (pixel(u, self.frame.width), pixel(v, self.frame.height)) else {
+        let Some(((u, v), z)) = self.pixel_of(p) else {
             return ViewSees::Unknown;
         };
         let raw = self.frame.data[v * self.frame.width as usize + u];
@@ -101,27 +109,24 @@ impl CarveView<'_> {
     /// or of the frame, where readings flicker).
     #[inline]
     fn ahead_of_reading(&self, p: Vec3) -> Option<(f32, f32, f32)> {
-        let q = self.object_to_camera.transform_point3(p);
-        let (u, v, z) = self.intrinsics.project(q)?;
-        let (u, v) = (pixel(u, self.frame.width)?, pixel(v, self.frame.height)?);
+        let ((u, v), z) = self.pixel_of(p)?;
         let w = self.frame.width as usize;
         if u == 0 || v == 0 || u + 1 >= w || v + 1 >= self.frame.height as usize {
             return None;
         }
         let data = &self.frame.data;
         let i = v * w + u;
-        if [i, i - 1, i + 1, i - w, i + w]
-            .iter()
-            .any(|&k| data[k] == 0)
-        {
+        let d = data[i];
+        if d == 0 {
             return None;
         }
-        let d = data[i];
-        let jump = [i - 1, i + 1, i - w, i + w]
-            .iter()
-            .map(|&k| data[k].abs_diff(d))
-            .max()
-            .unwrap_or(0);
+        let mut jump = 0;
+        for k in [i - 1, i + 1, i - w, i + w] {
+            if data[k] == 0 {
+                return None;
+            }
+            jump = jump.max(data[k].abs_diff(d));
+        }
         Some((
             f32::from(d) * self.frame.unit_m - z,
             z,
@@ -155,7 +160,8 @@ const HALF_DIAGONAL: f32 = 0.866;
 /// Where that mean and the cell's own value lie on different sides of the surface, the
 /// cell's value becomes their mean, each triangle that marked the cell counted as one
 /// reading and each view as one: the side with more readings wins, by how far they put
-/// the surface. Where they agree the cell keeps its value: how deep behind the seen
+/// the surface. The result is kept within half a cell diagonal of the centre, where the
+/// surface of any marked cell lies. Where they agree the cell keeps its value: how deep behind the seen
 /// surface a cell lies (which sets the back of a wall no view saw) stays the triangles'.
 ///
 /// With fewer than two views nothing changes: the one view's readings are the very ones
@@ -174,6 +180,11 @@ pub fn settle_disagreements(
     if views.len() < 2 {
         return 0;
     }
+    // Per view, the divisor from one frame's σ to that of its mean.
+    let sqrt_frames: Vec<f32> = (0..views.len())
+        .map(|k| (readings.get(k).copied().unwrap_or(1).max(1) as f32).sqrt())
+        .collect();
+    let most = HALF_DIAGONAL * grid.cell;
     let settle = |c: &mut Cell| -> bool {
         if c.hits == 0 {
             return false;
@@ -181,20 +192,21 @@ pub fn settle_disagreements(
         let own = c.mean_sdf();
         let p = grid.cell_center(c.coord);
         let (mut sum, mut weights, mut count) = (0.0f32, 0.0f32, 0u32);
-        for (k, view) in views.iter().enumerate() {
+        for (view, &sqrt_frames) in views.iter().zip(&sqrt_frames) {
             let Some((s, z, jump)) = view.ahead_of_reading(p) else {
                 continue;
             };
-            let n = readings.get(k).copied().unwrap_or(1).max(1) as f32;
-            let mut sigma = kinect_v1_sigma(z) / n.sqrt();
-            let band = 2.0 * sigma + HALF_DIAGONAL * grid.cell;
-            if jump > band {
-                // A depth edge: the pixel flickers, its mean may rest on one frame.
-                sigma = kinect_v1_sigma(z);
-            }
-            if !(s.is_finite() && sigma > 0.0) || s < -band {
+            let one_frame = kinect_v1_sigma(z);
+            let band = 2.0 * (one_frame / sqrt_frames) + most;
+            if s < -band {
                 continue;
             }
+            // At a depth edge the pixel flickers: its mean may rest on one frame.
+            let sigma = if jump > band {
+                one_frame
+            } else {
+                one_frame / sqrt_frames
+            };
             let w = 1.0 / (sigma * sigma);
             sum += w * s.min(band);
             weights += w;
@@ -208,7 +220,10 @@ pub fn settle_disagreements(
             return false;
         }
         let hits = c.hits as f32;
-        let settled = (own * hits + seen * count as f32) / (hits + count as f32);
+        // Within half a cell diagonal, as any marked cell's distance (the marcher tells a
+        // marked cell from an unobserved inside one by it).
+        let settled =
+            ((own * hits + seen * count as f32) / (hits + count as f32)).clamp(-most, most);
         c.sdf_sum = (settled * hits) as Real;
         true
     };
@@ -564,6 +579,26 @@ mod tests {
         f
     }
 
+    /// A camera 1 m in front of the plane z = 0 of the object frame, looking at it head-on
+    /// (the plane [`wall`]`(1.0)` shows).
+    fn head_on() -> Affine3A {
+        Rig {
+            tilt_deg: 0.0,
+            sensor_position_m: Vec3::new(0.0, 0.0, 1.0),
+        }
+        .camera_to_object(0.0)
+        .inverse()
+    }
+
+    /// `frame` seen by the [`head_on`] camera.
+    fn head_on_view(frame: &DepthFrame) -> CarveView<'_> {
+        CarveView {
+            frame,
+            intrinsics: Intrinsics::KINECT_V1,
+            object_to_camera: head_on(),
+        }
+    }
+
     /// The cells of `settle_disagreements`'s test: 2 mm cells around the origin, the wall
     /// of [`wall`] through z = 0, column (4, 4) of centres at x = y = 1 mm.
     fn settle_grid() -> GridSpec {
@@ -584,16 +619,8 @@ mod tests {
 
     #[test]
     fn views_settle_the_cells_that_disagree_with_them_and_leave_the_others() {
-        let rig = Rig {
-            tilt_deg: 0.0,
-            sensor_position_m: Vec3::new(0.0, 0.0, 1.0),
-        };
         let frame = wall(1.0);
-        let view = CarveView {
-            frame: &frame,
-            intrinsics: Intrinsics::KINECT_V1,
-            object_to_camera: rig.camera_to_object(0.0).inverse(),
-        };
+        let view = head_on_view(&frame);
         let grid = settle_grid();
         // Centres: z = 4 lies 1 mm in front of the wall, z = 3 1 mm behind it, z = 1 5 mm
         // behind it (beyond the band: 2σ/√4 + √3/2 · 2 mm = 3.2 mm at 1 m).
@@ -653,12 +680,8 @@ mod tests {
     /// the cell 1 mm in front outweighs one whose edge pixel puts it 1 mm behind.
     #[test]
     fn a_reading_at_a_depth_edge_counts_as_one_frame() {
-        let rig = Rig {
-            tilt_deg: 0.0,
-            sensor_position_m: Vec3::new(0.0, 0.0, 1.0),
-        };
         let grid = settle_grid();
-        let to_camera = rig.camera_to_object(0.0).inverse();
+        let to_camera = head_on();
         let p = grid.cell_center(UVec3::new(4, 4, 4));
         let (u, v, _) = Intrinsics::KINECT_V1
             .project(to_camera.transform_point3(p))
@@ -669,13 +692,8 @@ mod tests {
         let mut edge = wall(0.998);
         let w = edge.width as usize;
         edge.data[v * w + u + 1] = 2000;
-        let view = |frame| CarveView {
-            frame,
-            intrinsics: Intrinsics::KINECT_V1,
-            object_to_camera: to_camera,
-        };
         let mut cells = vec![marked(4, 2, -0.0005)];
-        let views = [view(&clean), view(&edge)];
+        let views = [head_on_view(&clean), head_on_view(&edge)];
         assert_eq!(settle_disagreements(&mut cells, &views, &[4, 4], &grid), 1);
         // The views' mean (4 · 1 − 1 · 1) / 5 mm, then (2 · −0.5 + 2 · 0.6) / 4 mm.
         assert!(
@@ -686,7 +704,7 @@ mod tests {
         // Without the edge both views weigh the same: their mean is 0, on the cell's side.
         let flat = wall(0.998);
         let mut cells = vec![marked(4, 2, -0.0005)];
-        let views = [view(&clean), view(&flat)];
+        let views = [head_on_view(&clean), head_on_view(&flat)];
         assert_eq!(settle_disagreements(&mut cells, &views, &[4, 4], &grid), 0);
     }
 
@@ -705,16 +723,8 @@ mod tests {
             views in 1usize..5,
             frames in 1u32..12,
         ) {
-            let rig = Rig {
-                tilt_deg: 0.0,
-                sensor_position_m: Vec3::new(0.0, 0.0, 1.0),
-            };
             let frame = wall(1.0);
-            let view = CarveView {
-                frame: &frame,
-                intrinsics: Intrinsics::KINECT_V1,
-                object_to_camera: rig.camera_to_object(0.0).inverse(),
-            };
+            let view = head_on_view(&frame);
             let grid = settle_grid();
             let mut cells: Vec<Cell> = cells
                 .into_iter()
@@ -742,7 +752,8 @@ mod tests {
                 if settles {
                     expected_changes += 1;
                     let (h, n) = (b.hits as f32, views as f32);
-                    let want = (own * h + seen * n) / (h + n);
+                    let most = HALF_DIAGONAL * grid.cell;
+                    let want = ((own * h + seen * n) / (h + n)).clamp(-most, most);
                     proptest::prop_assert!(
                         (c.mean_sdf() - want).abs() < 1e-5,
                         "{:?} -> {:?}, want {}", b, c, want
@@ -786,16 +797,8 @@ mod tests {
 
     #[test]
     fn space_in_front_is_seen_and_space_behind_is_unseen() {
-        let rig = Rig {
-            tilt_deg: 0.0,
-            sensor_position_m: Vec3::new(0.0, 0.0, 1.0),
-        };
         let frame = wall(1.0); // the wall is the plane z = 0 of the object frame
-        let view = CarveView {
-            frame: &frame,
-            intrinsics: Intrinsics::KINECT_V1,
-            object_to_camera: rig.camera_to_object(0.0).inverse(),
-        };
+        let view = head_on_view(&frame);
         let grid = GridSpec {
             origin: Vec3::splat(-0.08),
             cell: 0.01,
