@@ -775,7 +775,15 @@ fn close_unseen(
     let seen = visibility(views, grid, lo, hi, margin);
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.
-    close_cells(cells, (lo, hi), floor, min_hits, margin / grid.cell, &seen)
+    close_cells(
+        cells,
+        (lo, hi),
+        floor,
+        min_hits,
+        margin / grid.cell,
+        grid.cell,
+        &seen,
+    )
 }
 
 /// The filtered snapshots as views for carving, each where its camera was.

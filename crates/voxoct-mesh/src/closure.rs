@@ -22,6 +22,12 @@
 //! between the legs. The platform the object stands on is observed everywhere around it:
 //! its faces cost as much as faces next to an observation, so the base is put on it.
 //!
+//! The cut keeps the back of a wall that the views saw from one side only a leaf behind it
+//! (the outer wall of a bowl below where the views reach its inside). Where they saw the same
+//! wall from both sides they measured its thickness, and [`close_cells`] then continues the
+//! wall with it behind the one-sided part (the private `walls` module: the measurement, and
+//! when a wall is continued), so that the unseen inner surface continues the seen one.
+//!
 //! The cut is computed with the Boykov–Kolmogorov max-flow algorithm (Y. Boykov,
 //! V. Kolmogorov, "An Experimental Comparison of Min-Cut/Max-Flow Algorithms for Energy
 //! Minimization in Vision", IEEE TPAMI 26(9), 2004), with its distance/time-stamp heuristic
@@ -35,6 +41,8 @@ use voxoct_core::glam::UVec3;
 use voxoct_core::{Cell, GridSpec, Seen};
 
 use crate::par;
+
+mod walls;
 
 /// Hit count given to a cell that [`close_cells`] adds: high enough to pass any `min_hits`.
 pub const CLOSED_HITS: u32 = 1 << 16;
@@ -78,6 +86,12 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 /// `prior_cells` not finite or not positive: every face costs the same (the smallest
 /// surface).
 ///
+/// Then the walls seen from one side are continued: an unknown cell that the cut left
+/// outside is made solid where it lies behind a wall seen from one side, within the
+/// thickness that the views measured where they saw that wall from both sides (module
+/// docs); such a cell carries its signed distance to the continued surface (`cell`: the
+/// cells' edge in metres, to express it in the cells' unit) instead of [`CLOSED_SDF`].
+///
 /// Also returns how much of the closed solid's surface no view saw ([`ClosedSurface`], in
 /// faces of cells of the box): the back of surfaces seen from one side, the faces of the
 /// cells the cut added, the base on the platform. This is what the closure invented; it is
@@ -92,6 +106,7 @@ pub fn close_cells(
     floor: u32,
     min_hits: u32,
     prior_cells: f32,
+    cell: f32,
     seen: &[Seen],
 ) -> (Vec<Cell>, ClosedSurface) {
     if lo.cmpgt(hi).any() {
@@ -147,7 +162,37 @@ pub fn close_cells(
         },
         || face_costs(dims, &marked, prior_cells),
     );
-    let inside = close_coarse(dims, &known, &cost, coarse_levels(prior_cells));
+    let mut inside = close_coarse(dims, &known, &cost, coarse_levels(prior_cells));
+    drop(cost);
+    // Walls seen from one side continued to the thickness seen elsewhere ([`walls`]); the
+    // marked cells' signed distances in cells (of a repeated cell, the last one) are looked
+    // up only if there is a wall to continue.
+    let values = || {
+        let mut values: Vec<(u32, f32)> = cells
+            .iter()
+            .rev()
+            .filter(|c| counted(c))
+            .map(|c| (index(c.coord) as u32, c.mean_sdf() / cell))
+            .collect();
+        values.sort_by_key(|v| v.0);
+        values.dedup_by_key(|v| v.0);
+        values
+    };
+    let continued = if u32::try_from(n).is_ok() && cell.is_finite() && cell > 0.0 {
+        walls::continue_walls(
+            &mut walls::Box3 {
+                dims,
+                inside: &mut inside,
+                known: &known,
+                marked: &marked,
+                floor: floor.saturating_sub(lo.y) as usize,
+                resolved: walls::resolved_thickness(prior_cells),
+            },
+            values,
+        )
+    } else {
+        Vec::new()
+    };
     let surface = surface_faces(dims, &inside, &known, &marked, seen);
     // Unknown cells the cut put inside, and those sealed behind a surface (`inside` is false
     // for empty and excluded cells).
@@ -164,10 +209,14 @@ pub fn close_cells(
                 .enumerate()
                 .filter(|&(_, &a)| a)
             {
+                // A cell of a continued wall carries the signed distance of its inner surface.
+                let sdf_sum = continued
+                    .binary_search_by_key(&(i + dx), |w| w.0)
+                    .map_or(CLOSED_SDF, |k| continued[k].1 * cell * CLOSED_HITS as f32);
                 cells.push(Cell {
                     coord: UVec3::new(lo.x + dx as u32, y, z),
                     hits: CLOSED_HITS,
-                    sdf_sum: CLOSED_SDF,
+                    sdf_sum,
                 });
             }
             i += dims[0];
