@@ -66,6 +66,9 @@ pub(super) fn resolved_thickness(margin: f32) -> f32 {
     2.0 * margin - HALF_DIAGONAL
 }
 
+/// Largest budget of a front's growth, thirds of a cell (a thickness of 84 cells).
+const MAX_BUDGET: u8 = 254;
+
 /// Steps of the 3-4-5 chamfer (thirds of a cell) by how many coordinates change.
 const CHAMFER: [i32; 4] = [0, 3, 4, 5];
 
@@ -454,10 +457,12 @@ pub(super) fn continue_walls(
         .map(|(&w, t)| (w, t))
         .collect();
     let patch = patches(&g, &valid);
-    // Grow from the fronts: each reached cell keeps the largest budget left (thirds of a
-    // cell) and the wall cell it came from.
-    let mut reached: HashMap<usize, (i32, usize)> = HashMap::new();
-    let mut buckets: Vec<Vec<usize>> = Vec::new();
+    // The fronts that grow, each with its wall cell's index in `sources` (wall cell, inward
+    // normal) and its budget: the thickness plus the half cell from the front cell's centre
+    // to the surface, in thirds of a cell (at most [`MAX_BUDGET`]).
+    let mut sources: Vec<(usize, [f32; 3])> = Vec::new();
+    let mut source_of: HashMap<usize, u32> = HashMap::new();
+    let mut starts: Vec<(usize, u32, u8)> = Vec::new();
     for &(f, w) in &fronts {
         let Some(&t) = valid.get(&w) else {
             continue;
@@ -465,22 +470,53 @@ pub(super) fn continue_walls(
         if !patch[&w] {
             continue;
         }
-        let budget = ((t + 0.5) * 3.0).round() as i32;
-        if reached.get(&f).is_none_or(|r| r.0 < budget) {
-            reached.insert(f, (budget, w));
-            if buckets.len() <= budget as usize {
-                buckets.resize(budget as usize + 1, Vec::new());
-            }
-            buckets[budget as usize].push(f);
+        let budget = ((t + 0.5) * 3.0).round().min(f32::from(MAX_BUDGET)) as u8;
+        let s = *source_of.entry(w).or_insert_with(|| {
+            sources.push((w, normals[&w]));
+            (sources.len() - 1) as u32
+        });
+        starts.push((f, s, budget));
+    }
+    drop((source_of, valid, patch, normals));
+    if starts.is_empty() {
+        return Vec::new();
+    }
+    // The growth stays within the fronts' box grown by the largest budget: dense arrays over
+    // that region (the budget left plus one, 0 where not reached; the source).
+    let reach = usize::from(starts.iter().map(|s| s.2).max().unwrap_or(0)) / 3 + 1;
+    let mut rlo = g.coord(starts[0].0);
+    let mut rhi = rlo;
+    for &(f, _, _) in &starts {
+        let c = g.coord(f);
+        for a in 0..3 {
+            rlo[a] = rlo[a].min(c[a]);
+            rhi[a] = rhi[a].max(c[a]);
         }
     }
-    // A cell the growth may enter from wall cell `w`: an inside one, or an open one (unknown,
-    // outside by the cut, above the platform) within the cone around `w`'s inward normal
-    // and not next to a cell seen empty. Checked before a cell is reached, so that a cell
-    // out of one wall's cone stays open to another's.
+    for a in 0..3 {
+        rlo[a] = rlo[a].saturating_sub(reach);
+        rhi[a] = (rhi[a] + reach).min(g.dims[a] - 1);
+    }
+    let rd = [0, 1, 2].map(|a| rhi[a] - rlo[a] + 1);
+    let local =
+        |c: [usize; 3]| (c[0] - rlo[0]) + (c[1] - rlo[1]) * rd[0] + (c[2] - rlo[2]) * rd[0] * rd[1];
+    let mut left = vec![0u8; rd[0] * rd[1] * rd[2]];
+    let mut from = vec![0u32; left.len()];
+    let mut buckets: Vec<Vec<usize>> = vec![Vec::new(); usize::from(MAX_BUDGET) + 1];
+    for &(f, s, budget) in &starts {
+        let l = local(g.coord(f));
+        if left[l] < budget + 1 {
+            left[l] = budget + 1;
+            from[l] = s;
+            buckets[usize::from(budget)].push(f);
+        }
+    }
+    // A cell the growth may enter from source `s`: an inside one, or an open one (unknown,
+    // outside by the cut, above the platform) within the cone around the source's inward
+    // normal and not next to a cell seen empty. Checked before a cell is reached, so that a
+    // cell out of one wall's cone stays open to another's.
     let open = |j: usize| !b.inside[j] && b.known[j] == Known::Unknown;
-    let enterable = |j: usize, w: usize| {
-        let c = g.coord(j);
+    let enterable = |j: usize, c: [usize; 3], s: u32| {
         if c[1] < b.floor {
             return false;
         }
@@ -491,40 +527,63 @@ pub(super) fn continue_walls(
             return false;
         }
         let beside_empty = (0..3).any(|a| {
-            [-1i64, 1].iter().any(|&s| {
-                let mut d = [0i64; 3];
-                d[a] = s;
-                g.offset(c, d)
+            [-1i64, 1].iter().any(|&d| {
+                let mut o = [0i64; 3];
+                o[a] = d;
+                g.offset(c, o)
                     .is_some_and(|k| !b.inside[k] && b.known[k] == Known::Empty)
             })
         });
+        let (w, normal) = sources[s as usize];
         let cw = g.coord(w);
         let dir = [0, 1, 2].map(|a| c[a] as f32 - cw[a] as f32);
         let len = dir.iter().map(|x| x * x).sum::<f32>().sqrt();
-        let normal = normals[&w];
         let along = (0..3).map(|a| dir[a] * normal[a]).sum::<f32>();
         !beside_empty && along >= NORMAL_CONE_COS * len
     };
+    // The 26 steps: offset, chamfer price, and index offsets in the box and in the region.
+    let steps: Vec<([i64; 3], usize, isize, isize)> = neighbours26()
+        .map(|d| {
+            let price = CHAMFER[d.iter().filter(|&&x| x != 0).count()] as usize;
+            let box_off = d[0] as isize
+                + d[1] as isize * g.strides[1] as isize
+                + d[2] as isize * g.strides[2] as isize;
+            let region_off = d[0] as isize
+                + d[1] as isize * rd[0] as isize
+                + d[2] as isize * (rd[0] * rd[1]) as isize;
+            (d, price, box_off, region_off)
+        })
+        .collect();
     let mut filled = Vec::new();
     for level in (0..buckets.len()).rev() {
         for i in std::mem::take(&mut buckets[level]) {
-            let (budget, w) = reached[&i];
-            if budget != level as i32 {
+            let c = g.coord(i);
+            let l = local(c);
+            if usize::from(left[l]) != level + 1 {
                 continue;
             }
+            let s = from[l];
             if open(i) {
-                filled.push((i, -(budget as f32) / 3.0));
+                filled.push((i, -(level as f32) / 3.0));
             }
-            let c = g.coord(i);
-            for d in neighbours26() {
-                let Some(j) = g.offset(c, d) else {
+            for &(d, price, box_off, region_off) in &steps {
+                if price > level {
                     continue;
-                };
-                let step = CHAMFER[d.iter().filter(|&&x| x != 0).count()];
-                let left = budget - step;
-                if left >= 0 && reached.get(&j).is_none_or(|r| r.0 < left) && enterable(j, w) {
-                    reached.insert(j, (left, w));
-                    buckets[left as usize].push(j);
+                }
+                let rest = level - price;
+                let cj = [0, 1, 2].map(|a| c[a] as i64 + d[a]);
+                if (0..3).any(|a| cj[a] < rlo[a] as i64 || cj[a] > rhi[a] as i64) {
+                    continue;
+                }
+                let lj = l.wrapping_add_signed(region_off);
+                if usize::from(left[lj]) > rest {
+                    continue;
+                }
+                let j = i.wrapping_add_signed(box_off);
+                if enterable(j, cj.map(|v| v as usize), s) {
+                    left[lj] = (rest + 1) as u8;
+                    from[lj] = s;
+                    buckets[rest].push(j);
                 }
             }
         }
