@@ -23,8 +23,9 @@
 //!   `t` and unit normal `n` has runs `t / |n_k|` long, so `t = (Σ 1 / L_k²)^(-1/2)` (exact
 //!   for a plane slab). A thickness below the carving margin (the sensor's uncertainty of a
 //!   surface's position) is not resolved from the two surfaces' own marked cells and is not
-//!   taken. Each wall cell takes the thickness of the nearest such cell, through inside
-//!   cells.
+//!   taken ([`resolved_thickness`]). Each patch of one-sided wall cells takes the median of
+//!   the measurements within a few resolved thicknesses of it, through inside cells: the
+//!   wall next to it where both sides were seen.
 //! - A front is continued only where the space behind its wall cell, along the wall's
 //!   inward normal (minus the gradient of the marked cells' signed distances), is unknown
 //!   for more than the thickness: a narrower unseen gap is the cut's to close, not a wall's
@@ -47,10 +48,6 @@ use crate::par;
 /// cell to a cell it makes solid (45°: the normal comes from differences of noisy signed
 /// distances).
 const NORMAL_CONE_COS: f32 = std::f32::consts::FRAC_1_SQRT_2;
-
-/// Fixed-point scale of `1 / L²` in [`thickness`]'s accumulator (three axes of run length
-/// 1 stay below 2^14).
-const INV2_SCALE: f32 = 4096.0;
 
 /// Half a cell's diagonal, in cells.
 const HALF_DIAGONAL: f32 = 0.866;
@@ -301,85 +298,118 @@ fn fronts(candidates: &[[usize; 3]], v: &Values) -> Vec<(usize, usize)> {
         .collect()
 }
 
-/// The thickness measured for each cell of `wanted` (increasing), in cells (0: none): the
-/// median, each wall's area counting once, of the thicknesses measured in the piece of
-/// inside cells (26-connected: a thin oblique wall's cells touch by edges and corners)
-/// that holds it ([`continue_walls`]).
+/// Steps, in multiples of the least resolved thickness, that [`thickness`] searches from a
+/// patch of one-sided wall for the measurements of its wall.
+const SEARCH_THICKNESSES: f32 = 4.0;
+
+/// The wall's thickness at the unmarked inside cell `i`, in cells, if the views saw it from
+/// both sides: its runs of inside cells along all three axes end in seen cells at both ends
+/// (`(Σ 1/L²)^(-1/2)`, exact for a flat slab), and it is at least the resolved thickness.
+fn measured_at(b: &Box3<'_>, g: &BoxGrid, i: usize) -> Option<f32> {
+    if b.marked[i] || !b.inside[i] {
+        return None;
+    }
+    let c = g.coord(i);
+    let mut inv2 = 0.0f32;
+    for (a, (&ca, (&stride, &len))) in c.iter().zip(g.strides.iter().zip(&g.dims)).enumerate() {
+        let mut lo = ca;
+        while lo > 0 && b.inside[i - (ca - lo + 1) * stride] {
+            lo -= 1;
+        }
+        let mut hi = ca;
+        while hi + 1 < len && b.inside[i + (hi + 1 - ca) * stride] {
+            hi += 1;
+        }
+        let before = b.end((lo > 0).then(|| i - (ca - lo + 1) * stride), a == 1);
+        let after = b.end((hi + 1 < len).then(|| i + (hi + 1 - ca) * stride), false);
+        if before != End::Seen || after != End::Seen {
+            return None;
+        }
+        let l = (hi - lo + 1) as f32;
+        inv2 += 1.0 / (l * l);
+    }
+    let t = 1.0 / inv2.sqrt();
+    (t >= b.resolved).then_some(t)
+}
+
+/// The thickness measured for each cell of `wanted` (increasing), in cells (0: none): for
+/// each patch of them (26-connected), the median, each wall's area counting once, of the
+/// thicknesses measured ([`measured_at`]) at the inside cells within
+/// [`SEARCH_THICKNESSES`] resolved thicknesses of the patch (26-connected steps through
+/// inside cells): the wall next to it where the views saw both its sides.
 ///
-/// A median over the piece rather than the nearest measurement: next to where the views
-/// stop seeing the wall's other side, the runs are cut short by the edge of what they saw,
-/// and the nearest measurements are the worst ones (at 0.5 mm the bowl's lower wall took
-/// 6.7 cells from them where its wall is 12).
+/// A median over a band rather than the nearest measurement: next to where the views stop
+/// seeing the wall's other side, the runs are cut short by the edge of what they saw, and
+/// the nearest measurements are the worst ones (at 0.5 mm the bowl's lower wall took 6.7
+/// cells from them where its wall is 12). A band rather than the whole piece of inside
+/// cells: the wall next to the patch is what it continues, and a large solid's whole
+/// inside is too much to search (a dragon at 0.5 mm: over half a second).
 fn thickness(b: &Box3<'_>, g: &BoxGrid, wanted: &[usize]) -> Vec<f32> {
     let n = b.inside.len();
-    // Σ 1/L² in fixed point (low 14 bits) and the number of axes (high 2 bits).
-    let mut acc = vec![0u16; n];
-    for axis in 0..3 {
-        let stride = g.strides[axis];
-        let len = g.dims[axis];
-        for start in g.lines(axis) {
-            for (k0, k1) in g.runs(start, axis, b.inside) {
-                let at = |k: usize| start + k * stride;
-                let before = b.end((k0 > 0).then(|| at(k0 - 1)), axis == 1);
-                let after = b.end((k1 < len).then(|| at(k1)), false);
-                if before != End::Seen || after != End::Seen {
-                    continue;
-                }
-                let l = (k1 - k0) as f32;
-                let add = (INV2_SCALE / (l * l)).round() as u16;
-                for k in k0..k1 {
-                    let i = at(k);
-                    if !b.marked[i] {
-                        let (count, sum) = (acc[i] >> 14, acc[i] & 0x3fff);
-                        acc[i] = ((count + 1) << 14) | (sum + add).min(0x3fff);
-                    }
-                }
-            }
-        }
-    }
-    // The measured thickness of a cell, in cells, if it is inside a wall seen from both
-    // sides and thick enough to tell from its two surfaces.
-    let measured = |a: u16| {
-        let (count, sum) = (a >> 14, a & 0x3fff);
-        (count == 3 && sum > 0)
-            .then(|| (INV2_SCALE / f32::from(sum)).sqrt())
-            .filter(|&t| t >= b.resolved)
-    };
+    let depth = (SEARCH_THICKNESSES * b.resolved).ceil() as usize;
     let mut out = vec![0f32; wanted.len()];
+    let mut done = vec![false; wanted.len()];
     let mut seen = vec![0u64; n.div_ceil(64)];
-    let mut visit = |i: usize| {
-        let (w, bit) = (i / 64, 1u64 << (i % 64));
-        let new = seen[w] & bit == 0;
-        seen[w] |= bit;
-        new
-    };
-    let mut stack = Vec::new();
-    for (k0, &w0) in wanted.iter().enumerate() {
-        if !visit(w0) {
+    let mut touched: Vec<usize> = Vec::new();
+    let mut frontier: Vec<usize> = Vec::new();
+    let mut next: Vec<usize> = Vec::new();
+    for k0 in 0..wanted.len() {
+        if done[k0] {
             continue;
         }
-        // The piece: its wanted cells and its measurements (weight 1/t: a wall's cells are
-        // as many as its thickness times its area).
+        // The patch.
         let mut members = vec![k0];
-        let mut samples: Vec<(f32, f32)> = Vec::new();
-        stack.push(w0);
-        while let Some(i) = stack.pop() {
-            if let Some(t) = measured(acc[i]) {
-                samples.push((t, 1.0 / t));
-            }
-            let c = g.coord(i);
+        done[k0] = true;
+        let mut m = 0;
+        while m < members.len() {
+            let c = g.coord(wanted[members[m]]);
+            m += 1;
             for d in neighbours26() {
                 if let Some(j) = g.offset(c, d)
-                    && b.inside[j]
-                    && visit(j)
+                    && let Ok(k) = wanted.binary_search(&j)
+                    && !done[k]
                 {
-                    if let Ok(k) = wanted.binary_search(&j) {
-                        members.push(k);
-                    }
-                    stack.push(j);
+                    done[k] = true;
+                    members.push(k);
                 }
             }
         }
+        // The measurements within `depth` steps of it.
+        frontier.clear();
+        for &k in &members {
+            let i = wanted[k];
+            seen[i / 64] |= 1 << (i % 64);
+            touched.push(i);
+            frontier.push(i);
+        }
+        let mut samples: Vec<(f32, f32)> = Vec::new();
+        for step in 0..=depth {
+            next.clear();
+            for &i in &frontier {
+                if let Some(t) = measured_at(b, g, i) {
+                    samples.push((t, 1.0 / t));
+                }
+                if step == depth {
+                    continue;
+                }
+                let c = g.coord(i);
+                for d in neighbours26() {
+                    if let Some(j) = g.offset(c, d)
+                        && b.inside[j]
+                        && seen[j / 64] & (1 << (j % 64)) == 0
+                    {
+                        seen[j / 64] |= 1 << (j % 64);
+                        touched.push(j);
+                        next.push(j);
+                    }
+                }
+            }
+            std::mem::swap(&mut frontier, &mut next);
+        }
+        for &i in &touched {
+            seen[i / 64] &= !(1 << (i % 64));
+        }
+        touched.clear();
         if samples.is_empty() {
             continue;
         }
