@@ -691,6 +691,14 @@ mod tests {
     }
 
     fn slab(t: f32, two_sided_from: usize, unknown_to: f32) -> Slab {
+        slab_along([1.0, 1.0, 1.0], t, two_sided_from, unknown_to)
+    }
+
+    /// [`slab`] with the wall's normal along `normal` (positive components: the front faces
+    /// the box's low corner).
+    fn slab_along(normal: [f32; 3], t: f32, two_sided_from: usize, unknown_to: f32) -> Slab {
+        let len = normal.iter().map(|x| x * x).sum::<f32>().sqrt();
+        let normal = normal.map(|x| x / len);
         let n = 40usize;
         let dims = [n; 3];
         let g = BoxGrid::new(dims);
@@ -703,7 +711,7 @@ mod tests {
         let (mut values, mut depth) = (Vec::new(), vec![0f32; total]);
         for i in 0..total {
             let c = g.coord(i).map(|v| v as f32 + 0.5);
-            let s = (c[0] + c[1] + c[2]) / 3f32.sqrt() - 30.0;
+            let s = c[0] * normal[0] + c[1] * normal[1] + c[2] * normal[2] - 30.0;
             depth[i] = s;
             let two_sided = g.coord(i)[0] >= two_sided_from;
             // Marked by the outer surface, and by the inner one where it was seen.
@@ -828,5 +836,51 @@ mod tests {
         // The unseen space behind the one-sided part is 4 cells deep, less than the wall.
         let mut s = slab(8.0, 24, 4.0);
         assert!(continued(&mut s, 2.0).is_empty());
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+
+        /// Whatever the wall's direction, thickness, the part seen from both sides, the depth
+        /// of the unseen space behind and the sensor's margin: only cells that were unknown
+        /// and outside are made solid, none of them next to a cell seen empty, all behind the
+        /// wall's observed outer surface, each with a signed distance between minus the
+        /// largest growth and zero.
+        #[test]
+        fn continued_cells_are_unknown_behind_the_wall_and_clear_of_seen_space(
+            nx in 1u8..4, ny in 1u8..4, nz in 1u8..4,
+            t in 4.0f32..10.0,
+            from in 10usize..34,
+            unknown_to in 2.0f32..40.0,
+            margin in 1.5f32..4.0,
+        ) {
+            let mut s = slab_along([f32::from(nx), f32::from(ny), f32::from(nz)], t, from, unknown_to);
+            let before = s.inside.clone();
+            let out = continued(&mut s, margin);
+            let g = BoxGrid::new(s.dims);
+            let most = f32::from(MAX_BUDGET) / 3.0;
+            for &(i, v) in &out {
+                proptest::prop_assert!(!before[i] && s.known[i] == Known::Unknown);
+                proptest::prop_assert!(s.inside[i]);
+                proptest::prop_assert!(s.depth[i] > 0.0, "cell {} in front of the wall", i);
+                proptest::prop_assert!(v <= 0.0 && v >= -most, "value {}", v);
+                let c = g.coord(i);
+                for a in 0..3 {
+                    for d in [-1i64, 1] {
+                        let mut o = [0i64; 3];
+                        o[a] = d;
+                        if let Some(j) = g.offset(c, o) {
+                            proptest::prop_assert!(
+                                s.known[j] != Known::Empty || before[j],
+                                "cell {} next to seen-empty space", i
+                            );
+                        }
+                    }
+                }
+            }
+            // Nothing but those cells changed.
+            let changed = (0..s.inside.len()).filter(|&i| s.inside[i] != before[i]).count();
+            proptest::prop_assert_eq!(changed, out.len());
+        }
     }
 }
