@@ -110,9 +110,9 @@ fn cuboid(lo: Vec3, hi: Vec3) -> Vec<Triangle> {
 /// walls): the volume comes out at 0.84 of the cup's (it was a third of it when the unseen
 /// inner wall was put along the observed outer one, a leaf thin; the cup's 6 mm wall is four
 /// 1.5 mm leaves, and the measurements next to where the views stop seeing its inside are
-/// cut short by that edge). The reconstruction
-/// says how much of its surface no view saw: the continued inner wall and the base, over
-/// half of the faces of its cells (a closed sphere: its base, a few percent).
+/// cut short by that edge). The reconstruction says how much of its surface no view saw:
+/// the continued inner wall and the base, 42 % of the faces of its cells (a closed
+/// sphere: its base, a few percent).
 #[test]
 fn a_cup_keeps_its_inside_open() {
     let (ratio, mesh, unseen) = volume_ratio("mug", 0.0015);

@@ -185,7 +185,6 @@ pub fn close_cells(
                 inside: &mut inside,
                 known: &known,
                 marked: &marked,
-                floor: floor.saturating_sub(lo.y) as usize,
                 resolved: walls::resolved_thickness(prior_cells),
             },
             values,
@@ -194,6 +193,7 @@ pub fn close_cells(
         Vec::new()
     };
     let surface = surface_faces(dims, &inside, &known, &marked, seen);
+    let mut continued = continued.iter().peekable();
     // Unknown cells the cut put inside, and those sealed behind a surface (`inside` is false
     // for empty and excluded cells).
     let mut added = Vec::new();
@@ -209,10 +209,12 @@ pub fn close_cells(
                 .enumerate()
                 .filter(|&(_, &a)| a)
             {
-                // A cell of a continued wall carries the signed distance of its inner surface.
-                let sdf_sum = continued
-                    .binary_search_by_key(&(i + dx), |w| w.0)
-                    .map_or(CLOSED_SDF, |k| continued[k].1 * cell * CLOSED_HITS as f32);
+                // A cell of a continued wall carries the signed distance of its inner surface
+                // (both in increasing box order: one cursor).
+                let sdf_sum = match continued.next_if(|w| w.0 == i + dx) {
+                    Some(&(_, d)) => d * cell * CLOSED_HITS as f32,
+                    None => CLOSED_SDF,
+                };
                 cells.push(Cell {
                     coord: UVec3::new(lo.x + dx as u32, y, z),
                     hits: CLOSED_HITS,

@@ -21,9 +21,9 @@
 //! - **Measured thickness**: an unmarked inside cell whose runs along all three axes have
 //!   seen cells at both ends lies inside a wall seen from both sides; a slab of thickness
 //!   `t` and unit normal `n` has runs `t / |n_k|` long, so `t = (Σ 1 / L_k²)^(-1/2)` (exact
-//!   for a plane slab). A thickness below the carving margin (the sensor's uncertainty of a
-//!   surface's position) is not resolved from the two surfaces' own marked cells and is not
-//!   taken ([`resolved_thickness`]). Each patch of one-sided wall cells takes the median of
+//!   for a plane slab). A thickness below twice the carving margin (the sensor's uncertainty
+//!   of a surface's position) less half a cell diagonal is not resolved from one noisy
+//!   surface and is not taken ([`resolved_thickness`]). Each patch of one-sided wall cells takes the median of
 //!   the measurements within a few resolved thicknesses of it, through inside cells: the
 //!   wall next to it where both sides were seen.
 //! - A front is continued only where the space behind its wall cell, along the wall's
@@ -66,8 +66,14 @@ pub(super) fn resolved_thickness(margin: f32) -> f32 {
 /// Largest budget of a front's growth, thirds of a cell (a thickness of 84 cells).
 const MAX_BUDGET: u8 = 254;
 
-/// Steps of the 3-4-5 chamfer (thirds of a cell) by how many coordinates change.
-const CHAMFER: [i32; 4] = [0, 3, 4, 5];
+/// Steps of the closure's 3-4-5 chamfer ([`super::CHAMFER_FACE`] for a face step, thirds
+/// of a cell) by how many coordinates change.
+const CHAMFER: [usize; 4] = [
+    0,
+    super::CHAMFER_FACE as usize,
+    super::CHAMFER_FACE as usize + 1,
+    super::CHAMFER_FACE as usize + 2,
+];
 
 /// What lies at one end of a run of inside cells.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -111,6 +117,15 @@ impl BoxGrid {
             i += q as usize * self.strides[a];
         }
         Some(i)
+    }
+
+    /// The (up to six) cells that share a face with the cell at `c`.
+    fn face_neighbours(&self, c: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
+        (0..6).filter_map(move |k| {
+            let mut d = [0i64; 3];
+            d[k / 2] = if k % 2 == 0 { -1 } else { 1 };
+            self.offset(c, d)
+        })
     }
 
     /// Every line of cells along `axis`: its first cell.
@@ -161,8 +176,6 @@ pub(super) struct Box3<'a> {
     pub known: &'a [Known],
     /// Cells marked by triangles.
     pub marked: &'a [bool],
-    /// Cells below this layer (box coordinates) are the platform's.
-    pub floor: usize,
     /// The least thickness that counts as measured, in cells ([`resolved_thickness`]).
     pub resolved: f32,
 }
@@ -333,7 +346,7 @@ fn measured_at(b: &Box3<'_>, g: &BoxGrid, i: usize) -> Option<f32> {
 }
 
 /// The thickness measured for each cell of `wanted` (increasing), in cells (0: none): for
-/// each patch of them (26-connected), the median, each wall's area counting once, of the
+/// each of its `patches` ([`patches`]), the median, each wall's area counting once, of the
 /// thicknesses measured ([`measured_at`]) at the inside cells within
 /// [`SEARCH_THICKNESSES`] resolved thicknesses of the patch (26-connected steps through
 /// inside cells): the wall next to it where the views saw both its sides.
@@ -344,39 +357,18 @@ fn measured_at(b: &Box3<'_>, g: &BoxGrid, i: usize) -> Option<f32> {
 /// cells from them where its wall is 12). A band rather than the whole piece of inside
 /// cells: the wall next to the patch is what it continues, and a large solid's whole
 /// inside is too much to search (a dragon at 0.5 mm: over half a second).
-fn thickness(b: &Box3<'_>, g: &BoxGrid, wanted: &[usize]) -> Vec<f32> {
+fn thickness(b: &Box3<'_>, g: &BoxGrid, wanted: &[usize], patches: &[Vec<usize>]) -> Vec<f32> {
     let n = b.inside.len();
     let depth = (SEARCH_THICKNESSES * b.resolved).ceil() as usize;
     let mut out = vec![0f32; wanted.len()];
-    let mut done = vec![false; wanted.len()];
     let mut seen = vec![0u64; n.div_ceil(64)];
     let mut touched: Vec<usize> = Vec::new();
     let mut frontier: Vec<usize> = Vec::new();
     let mut next: Vec<usize> = Vec::new();
-    for k0 in 0..wanted.len() {
-        if done[k0] {
-            continue;
-        }
-        // The patch.
-        let mut members = vec![k0];
-        done[k0] = true;
-        let mut m = 0;
-        while m < members.len() {
-            let c = g.coord(wanted[members[m]]);
-            m += 1;
-            for d in neighbours26() {
-                if let Some(j) = g.offset(c, d)
-                    && let Ok(k) = wanted.binary_search(&j)
-                    && !done[k]
-                {
-                    done[k] = true;
-                    members.push(k);
-                }
-            }
-        }
+    for members in patches {
         // The measurements within `depth` steps of it.
         frontier.clear();
-        for &k in &members {
+        for &k in members {
             let i = wanted[k];
             seen[i / 64] |= 1 << (i % 64);
             touched.push(i);
@@ -423,7 +415,7 @@ fn thickness(b: &Box3<'_>, g: &BoxGrid, wanted: &[usize]) -> Vec<f32> {
                 sum >= half
             })
             .map_or(0.0, |s| s.0);
-        for k in members {
+        for &k in members {
             out[k] = t;
         }
     }
@@ -465,28 +457,38 @@ pub(super) fn continue_walls(
         .map(|&w| (w, b.inward(&g, &values, w)))
         .collect();
     drop(values);
-    let least: HashMap<usize, f32> = walls
+    let deep: Vec<usize> = walls
         .iter()
-        .filter(|&&w| b.deep_behind(&g, w, normals[&w], b.resolved))
-        .map(|&w| (w, b.resolved))
+        .copied()
+        .filter(|&w| b.deep_behind(&g, w, normals[&w], b.resolved))
         .collect();
-    let wanted: Vec<usize> = {
-        let kept = patches(&g, &least);
-        let mut v: Vec<usize> = kept.iter().filter(|k| *k.1).map(|k| *k.0).collect();
-        v.sort_unstable();
-        v
-    };
+    let wanted: Vec<usize> = patches(&g, &deep)
+        .into_iter()
+        .filter(|p| is_sheet(p.len(), b.resolved))
+        .flat_map(|p| p.into_iter().map(|k| deep[k]))
+        .collect::<std::collections::BTreeSet<usize>>()
+        .into_iter()
+        .collect();
     if wanted.is_empty() {
         return Vec::new();
     }
-    let thick = thickness(b, &g, &wanted);
-    let valid: HashMap<usize, f32> = wanted
+    let thick = thickness(b, &g, &wanted, &patches(&g, &wanted));
+    let measured: Vec<(usize, f32)> = wanted
         .iter()
         .zip(thick)
         .filter(|&(&w, t)| t >= b.resolved && b.deep_behind(&g, w, normals[&w], t))
         .map(|(&w, t)| (w, t))
         .collect();
-    let patch = patches(&g, &valid);
+    // Kept in sheets of their median thickness.
+    let cells: Vec<usize> = measured.iter().map(|m| m.0).collect();
+    let mut valid: HashMap<usize, f32> = HashMap::new();
+    for p in patches(&g, &cells) {
+        let mut ts: Vec<f32> = p.iter().map(|&k| measured[k].1).collect();
+        ts.sort_by(f32::total_cmp);
+        if is_sheet(p.len(), ts[ts.len() / 2]) {
+            valid.extend(p.iter().map(|&k| measured[k]));
+        }
+    }
     // The fronts that grow, each with its wall cell's index in `sources` (wall cell, inward
     // normal) and its budget: the thickness plus the half cell from the front cell's centre
     // to the surface, in thirds of a cell (at most [`MAX_BUDGET`]).
@@ -497,9 +499,6 @@ pub(super) fn continue_walls(
         let Some(&t) = valid.get(&w) else {
             continue;
         };
-        if !patch[&w] {
-            continue;
-        }
         let budget = ((t + 0.5) * 3.0).round().min(f32::from(MAX_BUDGET)) as u8;
         let s = *source_of.entry(w).or_insert_with(|| {
             sources.push((w, normals[&w]));
@@ -507,7 +506,7 @@ pub(super) fn continue_walls(
         });
         starts.push((f, s, budget));
     }
-    drop((source_of, valid, patch, normals));
+    drop((source_of, valid, normals));
     if starts.is_empty() {
         return Vec::new();
     }
@@ -542,28 +541,20 @@ pub(super) fn continue_walls(
         }
     }
     // A cell the growth may enter from source `s`: an inside one, or an open one (unknown,
-    // outside by the cut, above the platform) within the cone around the source's inward
+    // outside by the cut; the cells below the platform are excluded, never open) within the cone around the source's inward
     // normal and not next to a cell seen empty. Checked before a cell is reached, so that a
     // cell out of one wall's cone stays open to another's.
     let open = |j: usize| !b.inside[j] && b.known[j] == Known::Unknown;
     let enterable = |j: usize, c: [usize; 3], s: u32| {
-        if c[1] < b.floor {
-            return false;
-        }
         if b.inside[j] {
             return true;
         }
         if !open(j) {
             return false;
         }
-        let beside_empty = (0..3).any(|a| {
-            [-1i64, 1].iter().any(|&d| {
-                let mut o = [0i64; 3];
-                o[a] = d;
-                g.offset(c, o)
-                    .is_some_and(|k| !b.inside[k] && b.known[k] == Known::Empty)
-            })
-        });
+        let beside_empty = g
+            .face_neighbours(c)
+            .any(|k| !b.inside[k] && b.known[k] == Known::Empty);
         let (w, normal) = sources[s as usize];
         let cw = g.coord(w);
         let dir = [0, 1, 2].map(|a| c[a] as f32 - cw[a] as f32);
@@ -574,7 +565,7 @@ pub(super) fn continue_walls(
     // The 26 steps: offset, chamfer price, and index offsets in the box and in the region.
     let steps: Vec<([i64; 3], usize, isize, isize)> = neighbours26()
         .map(|d| {
-            let price = CHAMFER[d.iter().filter(|&&x| x != 0).count()] as usize;
+            let price = CHAMFER[d.iter().filter(|&&x| x != 0).count()];
             let box_off = d[0] as isize
                 + d[1] as isize * g.strides[1] as isize
                 + d[2] as isize * g.strides[2] as isize;
@@ -618,49 +609,48 @@ pub(super) fn continue_walls(
             }
         }
     }
+    // A cell is taken at the one level it was last raised to: no repeats.
     filled.sort_unstable_by_key(|f| f.0);
-    filled.dedup_by_key(|f| f.0);
     for &(i, _) in &filled {
         b.inside[i] = true;
     }
     filled
 }
 
-/// Whether each of `cells` (wall cells with their thickness) lies in a patch (26-connected
-/// among them) of at least thickness² cells, the median thickness of the patch.
-fn patches(g: &BoxGrid, cells: &HashMap<usize, f32>) -> HashMap<usize, bool> {
-    let mut patch: HashMap<usize, bool> = HashMap::with_capacity(cells.len());
-    let mut order: Vec<usize> = cells.keys().copied().collect();
-    order.sort_unstable();
-    for &w0 in &order {
-        if patch.contains_key(&w0) {
+/// The patches of `cells` (box indices, increasing): their 26-connected pieces, each as
+/// positions in `cells`, in the order of their first cell.
+fn patches(g: &BoxGrid, cells: &[usize]) -> Vec<Vec<usize>> {
+    let mut done = vec![false; cells.len()];
+    let mut out = Vec::new();
+    for k0 in 0..cells.len() {
+        if done[k0] {
             continue;
         }
-        let mut members = vec![w0];
-        patch.insert(w0, false);
-        let mut next = 0;
-        while next < members.len() {
-            let c = g.coord(members[next]);
-            next += 1;
+        done[k0] = true;
+        let mut members = vec![k0];
+        let mut m = 0;
+        while m < members.len() {
+            let c = g.coord(cells[members[m]]);
+            m += 1;
             for d in neighbours26() {
                 if let Some(j) = g.offset(c, d)
-                    && cells.contains_key(&j)
-                    && !patch.contains_key(&j)
+                    && let Ok(k) = cells.binary_search(&j)
+                    && !done[k]
                 {
-                    patch.insert(j, false);
-                    members.push(j);
+                    done[k] = true;
+                    members.push(k);
                 }
             }
         }
-        let mut ts: Vec<f32> = members.iter().map(|m| cells[m]).collect();
-        ts.sort_by(f32::total_cmp);
-        let t = ts[ts.len() / 2];
-        let keep = members.len() as f32 >= t * t;
-        for m in members {
-            patch.insert(m, keep);
-        }
+        out.push(members);
     }
-    patch
+    out
+}
+
+/// Whether a patch of wall cells of thickness `t` (cells) is a sheet to continue: at least
+/// as many cells as `t²`, as wide as the wall is thick.
+fn is_sheet(cells: usize, t: f32) -> bool {
+    cells as f32 >= t * t
 }
 
 /// The 26 offsets to a cell's neighbours.
@@ -745,6 +735,21 @@ mod tests {
         }
     }
 
+    /// Whether cell `i` of `s` shares a face with a cell seen empty (`before`: the cut's
+    /// inside cells).
+    fn beside_seen_empty(s: &Slab, before: &[bool], i: usize) -> bool {
+        let g = BoxGrid::new(s.dims);
+        let c = g.coord(i);
+        (0..3).any(|a| {
+            [-1i64, 1].into_iter().any(|d| {
+                let mut o = [0i64; 3];
+                o[a] = d;
+                g.offset(c, o)
+                    .is_some_and(|j| s.known[j] == Known::Empty && !before[j])
+            })
+        })
+    }
+
     fn continued(s: &mut Slab, margin: f32) -> Vec<(usize, f32)> {
         let values = s.values.clone();
         continue_walls(
@@ -753,7 +758,6 @@ mod tests {
                 inside: &mut s.inside,
                 known: &s.known,
                 marked: &s.marked,
-                floor: 0,
                 resolved: resolved_thickness(margin),
             },
             move || values,
@@ -777,19 +781,10 @@ mod tests {
                 "cell {i} was not open"
             );
             assert!(s.inside[i]);
-            let c = g.coord(i);
-            for a in 0..3 {
-                for d in [-1i64, 1] {
-                    let mut o = [0i64; 3];
-                    o[a] = d;
-                    if let Some(j) = g.offset(c, o) {
-                        assert!(
-                            s.known[j] != Known::Empty || before[j],
-                            "cell {i} is next to seen-empty space"
-                        );
-                    }
-                }
-            }
+            assert!(
+                !beside_seen_empty(&s, &before, i),
+                "cell {i} is next to seen-empty space"
+            );
             // Inside the continued inner surface, which lies no deeper than the measured
             // thickness (within the chamfer's error and a cell), and at it away from the
             // box's sides and the edge of the one-sided part.
@@ -857,26 +852,16 @@ mod tests {
             let mut s = slab_along([f32::from(nx), f32::from(ny), f32::from(nz)], t, from, unknown_to);
             let before = s.inside.clone();
             let out = continued(&mut s, margin);
-            let g = BoxGrid::new(s.dims);
             let most = f32::from(MAX_BUDGET) / 3.0;
             for &(i, v) in &out {
                 proptest::prop_assert!(!before[i] && s.known[i] == Known::Unknown);
                 proptest::prop_assert!(s.inside[i]);
                 proptest::prop_assert!(s.depth[i] > 0.0, "cell {} in front of the wall", i);
                 proptest::prop_assert!(v <= 0.0 && v >= -most, "value {}", v);
-                let c = g.coord(i);
-                for a in 0..3 {
-                    for d in [-1i64, 1] {
-                        let mut o = [0i64; 3];
-                        o[a] = d;
-                        if let Some(j) = g.offset(c, o) {
-                            proptest::prop_assert!(
-                                s.known[j] != Known::Empty || before[j],
-                                "cell {} next to seen-empty space", i
-                            );
-                        }
-                    }
-                }
+                proptest::prop_assert!(
+                    !beside_seen_empty(&s, &before, i),
+                    "cell {} next to seen-empty space", i
+                );
             }
             // Nothing but those cells changed.
             let changed = (0..s.inside.len()).filter(|&i| s.inside[i] != before[i]).count();
