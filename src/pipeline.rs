@@ -26,7 +26,9 @@ use voxoct_mesh::{Floor, Mesh, MeshError, MeshOptions, Simplified, Simplify, Sim
 use crate::par;
 
 use voxoct_depth::carve::{CarveView, settle_disagreements, visibility};
-use voxoct_mesh::closure::{CLOSED_HITS, CLOSED_SDF, ClosedSurface, close_cells, closure_box};
+use voxoct_mesh::closure::{
+    CLOSED_HITS, CLOSED_SDF, ClosedSurface, Platform, close_cells, closure_box,
+};
 
 /// The frames of one snapshot and the turntable angle they were taken at.
 #[derive(Debug, Clone, PartialEq)]
@@ -670,7 +672,8 @@ fn close_unseen_in_budget(
     let views = carve_views(config, filtered, angles);
     // The marked cells at full resolution, whichever grid the closure then runs on.
     let settled = settle_disagreements(&mut cells, &views, readings, &grid);
-    let floor = closure_floor(options, &grid);
+    let platform = closure_platform(config, options, &grid);
+    let floor = platform.floor;
     let Some((lo, hi)) = closure_box(&cells, &grid, floor) else {
         return (cells, None, settled);
     };
@@ -684,7 +687,7 @@ fn close_unseen_in_budget(
             &grid,
             cells,
             (lo, hi),
-            floor,
+            platform,
             &views,
             options.min_hits,
         );
@@ -698,8 +701,8 @@ fn close_unseen_in_budget(
     let coarse_grid = tree.grid(depth - k);
     let coarse = tree.cells_at_depth(depth - k);
     let known = coarse.len();
-    let coarse_floor = closure_floor(options, &coarse_grid);
-    let Some(coarse_box) = closure_box(&coarse, &coarse_grid, coarse_floor) else {
+    let coarse_platform = closure_platform(config, options, &coarse_grid);
+    let Some(coarse_box) = closure_box(&coarse, &coarse_grid, coarse_platform.floor) else {
         return (cells, None, settled);
     };
     let (closed, coarse_surface) = close_unseen(
@@ -707,7 +710,7 @@ fn close_unseen_in_budget(
         &coarse_grid,
         coarse,
         coarse_box,
-        coarse_floor,
+        coarse_platform,
         &views,
         options.min_hits,
     );
@@ -741,11 +744,21 @@ fn close_unseen_in_budget(
     (cells, Some(surface), settled)
 }
 
-/// The layer below which [`close_unseen`] excludes cells (the floor's, else none).
-fn closure_floor(options: &MeshOptions, grid: &GridSpec) -> u32 {
+/// The platform for [`close_unseen`]: the layer below which it excludes cells (the floor's,
+/// else none), and the layers above it whose readings the clip box removed (from the floor
+/// up to the clip box's bottom, when that is above the floor).
+fn closure_platform(config: &ScannerConfig, options: &MeshOptions, grid: &GridSpec) -> Platform {
     match options.floor {
-        Floor::Y(y) => Floor::y_layer(y, grid),
-        _ => 0,
+        Floor::Y(y) => {
+            let floor = Floor::y_layer(y, grid);
+            let clipped = if config.clip.min.y > y {
+                Floor::y_layer(config.clip.min.y, grid).saturating_sub(floor)
+            } else {
+                0
+            };
+            Platform { floor, clipped }
+        }
+        _ => Platform::default(),
     }
 }
 
@@ -758,7 +771,7 @@ fn close_unseen(
     grid: &GridSpec,
     cells: Vec<Cell>,
     (lo, hi): (UVec3, UVec3),
-    floor: u32,
+    platform: Platform,
     views: &[CarveView<'_>],
     min_hits: u32,
 ) -> (Vec<Cell>, ClosedSurface) {
@@ -778,7 +791,7 @@ fn close_unseen(
     close_cells(
         cells,
         (lo, hi),
-        floor,
+        platform,
         min_hits,
         margin / grid.cell,
         grid.cell,
@@ -906,7 +919,12 @@ mod tests {
         let options = mesh_options(&config, &params);
         let grid = tree.grid(depth);
         let marked = tree.cells_at_depth(depth);
-        let (lo, hi) = closure_box(&marked, &grid, closure_floor(&options, &grid)).unwrap();
+        let (lo, hi) = closure_box(
+            &marked,
+            &grid,
+            closure_platform(&config, &options, &grid).floor,
+        )
+        .unwrap();
         let d = (hi - lo + UVec3::ONE).as_u64vec3();
         let solid = |budget: u64| {
             let views = (filtered.as_slice(), angles.as_slice(), &[1; 8][..]);

@@ -2,6 +2,8 @@
 //! saw as empty stays empty, the rest is closed by the smallest surface, and the mesh is
 //! closed either way.
 
+use parry3d::query::{Ray, RayCast};
+use parry3d::shape::TriMesh;
 use voxoct::core::glam::Vec3;
 use voxoct::core::{Aabb, Triangle};
 use voxoct::depth::ScannerConfig;
@@ -124,6 +126,72 @@ fn a_cup_keeps_its_inside_open() {
         sphere > 0.0 && sphere < 0.12,
         "sphere: unseen share {sphere}"
     );
+}
+
+/// How often a vertical ray up from below the platform at `(x, z)` crosses `mesh` below the
+/// height `top`.
+fn crossings_below(mesh: &voxoct::mesh::Mesh, x: f32, z: f32, top: f32) -> usize {
+    let shape = TriMesh::new(mesh.vertices.clone(), mesh.triangles.clone()).expect("mesh");
+    let mut origin = Vec3::new(x, -0.01, z);
+    let mut crossings = 0;
+    while let Some(t) = shape.cast_local_ray(&Ray::new(origin, Vec3::Y), top - origin.y, false) {
+        crossings += 1;
+        origin.y += t + 1e-5;
+    }
+    crossings
+}
+
+/// The cup stands on the platform with its bottom (8 mm thick, under an inside no view saw
+/// down to its floor): the cut left that inside open onto the platform, a tube, and the
+/// closure gives the enclosed footprint a bottom on the platform (`voxoct_mesh::closure`'s
+/// platform rules). A vertical ray up through the inside meets the bottom's underside and
+/// top below the cup's inner floor, anywhere across it; beside the cup it meets nothing.
+#[test]
+fn a_cup_has_a_bottom() {
+    let (_, mesh, _) = volume_ratio("mug", 0.0015);
+    for (x, z) in [(0.0, 0.0), (0.025, 0.0), (-0.02, 0.02), (0.0, -0.03)] {
+        let n = crossings_below(&mesh, x, z, 0.008);
+        assert!(
+            n >= 2 && n.is_multiple_of(2),
+            "({x}, {z}): {n} crossings below the floor"
+        );
+    }
+    assert_eq!(crossings_below(&mesh, 0.0, 0.06, 0.008), 0);
+}
+
+/// A stool: a 60 × 60 × 10 mm seat on four legs 8 mm square and 40 mm tall. The clip box
+/// drops the readings of the legs' lowest 3 mm, and the cut ended each leg where its
+/// readings end, 2–3 mm above the platform; the clipped band is closed down to the
+/// platform under every column the object stands on, so each leg reaches it (within a
+/// leaf), while the space under the seat, seen between the legs, stays open. (The seat's
+/// underside faces away from every view, and the cut keeps the seat a shell along its
+/// observed top and sides: its volume is not asserted here.)
+#[test]
+fn legs_reach_the_platform() {
+    let leaf = 0.001;
+    let mut tris = cuboid(Vec3::new(-0.03, 0.04, -0.03), Vec3::new(0.03, 0.05, 0.03));
+    let legs = [
+        (-0.022, -0.022),
+        (-0.022, 0.022),
+        (0.022, -0.022),
+        (0.022, 0.022),
+    ];
+    for (x, z) in legs {
+        tris.extend(cuboid(
+            Vec3::new(x - 0.004, 0.0, z - 0.004),
+            Vec3::new(x + 0.004, 0.04, z + 0.004),
+        ));
+    }
+    let model = Model::from_triangles(&tris);
+    let (_, mesh, _) = model_volume_ratio("stool", &model, leaf);
+    for (x, z) in legs {
+        assert!(
+            crossings_below(&mesh, x, z, leaf) >= 1,
+            "the leg at ({x}, {z}) ends above {leaf} m"
+        );
+    }
+    assert_eq!(crossings_below(&mesh, 0.0, 0.0, 0.035), 0, "under the seat");
+    assert_eq!(mesh.stats().components, 1);
 }
 
 /// A narrow-necked vase (the built-in `vase`: a 90 mm body, a mouth 24 mm wide): from 20°

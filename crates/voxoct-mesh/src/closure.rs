@@ -28,6 +28,12 @@
 //! wall with it behind the one-sided part (the private `walls` module: the measurement, and
 //! when a wall is continued), so that the unseen inner surface continues the seen one.
 //!
+//! Where the object meets the platform, two rules from how a turntable scan sees a bottom
+//! (the private `platform` module): the band over the platform whose readings the clip box
+//! removed is solid under every column the object stands on (a leg or a foot ring reaches
+//! the platform instead of ending where its readings end), and a vessel whose inside no view
+//! saw down to its floor, which the cut leaves open onto the platform, gets a bottom.
+//!
 //! The cut is computed with the Boykov–Kolmogorov max-flow algorithm (Y. Boykov,
 //! V. Kolmogorov, "An Experimental Comparison of Min-Cut/Max-Flow Algorithms for Energy
 //! Minimization in Vision", IEEE TPAMI 26(9), 2004), with its distance/time-stamp heuristic
@@ -42,7 +48,10 @@ use voxoct_core::{Cell, GridSpec, Seen};
 
 use crate::par;
 
+mod platform;
 mod walls;
+
+pub use platform::Platform;
 
 /// Hit count given to a cell that [`close_cells`] adds: high enough to pass any `min_hits`.
 pub const CLOSED_HITS: u32 = 1 << 16;
@@ -80,11 +89,18 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 /// unmarked cell is empty when the views saw it so (`seen`: their verdict on every cell of
 /// the box, x fastest, as `voxoct_depth::carve::visibility` gives it), and unknown
 /// otherwise.
-/// Cells below the layer `floor` are excluded, and the box's faces border empty space. A
-/// face of the cut costs `1 + d / prior_cells` ([`close_unknown_weighted`]), `d` its
-/// distance in cells from the nearest marked cell; the floor (the platform) costs 1.
-/// `prior_cells` not finite or not positive: every face costs the same (the smallest
-/// surface).
+/// Cells below the platform's layer (`platform.floor`) are excluded, and the box's faces
+/// border empty space. A face of the cut costs `1 + d / prior_cells`
+/// ([`close_unknown_weighted`]), `d` its distance in cells from the nearest marked cell; the
+/// floor (the platform) costs 1. `prior_cells` not finite or not positive: every face costs
+/// the same (the smallest surface).
+///
+/// The object stands on the platform ([`Platform`], the private `platform` module): before
+/// the cut, a column whose lowest solid cell lies in the `platform.clipped` layers whose
+/// readings the clip box removed is made solid down to the platform; after it, a region of
+/// the platform's layer that the object's foot encloses, that no view saw, and whose space
+/// above reaches space seen empty (a vessel the cut left open onto the platform) gets a
+/// bottom.
 ///
 /// Then the walls seen from one side are continued: an unknown cell that the cut left
 /// outside is made solid where it lies behind a wall seen from one side, within the
@@ -103,12 +119,14 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 pub fn close_cells(
     cells: Vec<Cell>,
     (lo, hi): (UVec3, UVec3),
-    floor: u32,
+    platform: Platform,
     min_hits: u32,
     prior_cells: f32,
     cell: f32,
     seen: &[Seen],
 ) -> (Vec<Cell>, ClosedSurface) {
+    let floor = platform.floor;
+    let floor_in_box = floor.checked_sub(lo.y).map(|f| f as usize);
     if lo.cmpgt(hi).any() {
         return (cells, ClosedSurface::default());
     }
@@ -158,6 +176,9 @@ pub fn close_cells(
                 }
             }
             seal_behind_surfaces(dims, &mut known, &marked);
+            if let Some(f) = floor_in_box {
+                platform::extend_into_band(dims, &mut known, f, platform.clipped as usize);
+            }
             known
         },
         || face_costs(dims, &marked, prior_cells),
@@ -192,6 +213,15 @@ pub fn close_cells(
     } else {
         Vec::new()
     };
+    if let Some(f) = floor_in_box {
+        let margin = if prior_cells.is_finite() {
+            prior_cells
+        } else {
+            0.0
+        };
+        let clipped = platform.clipped as usize;
+        platform::cover_footprints(dims, &mut inside, &known, seen, (f, clipped), margin);
+    }
     let surface = surface_faces(dims, &inside, &known, &marked, seen);
     let mut continued = continued.iter().peekable();
     // Unknown cells the cut put inside, and those sealed behind a surface (`inside` is false

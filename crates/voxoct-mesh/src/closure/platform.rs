@@ -1,0 +1,466 @@
+//! The object stands on the platform: what the clip box hid of its foot, and the platform
+//! inside its footprint that no view saw.
+//!
+//! Two rules, each from how a turntable scan sees an object's bottom:
+//! - **The clipped band reaches the platform** ([`extend_into_band`], before the cut). The
+//!   clip box drops every reading within its margin over the platform (3 mm by default),
+//!   where the sensor cannot tell the object's foot from the platform, so no triangle marks
+//!   the foot there, and the cut ended a leg, a foot ring or the wall of a vase where the
+//!   readings end, 2–3 mm above the platform. A column of cells whose lowest solid cell
+//!   lies in that band, that is solid from there up through the layer above the band (the
+//!   first one whose readings are whole: something stands on the column, not a lone cell
+//!   of noise beside a face), and below which nothing was seen empty, is continued down to
+//!   the platform: the object rests on it.
+//! - **A vessel's hidden inside gets a bottom** ([`cover_footprints`], after the cut). On
+//!   the platform's layer, a region that the object's foot encloses, where no view saw the
+//!   platform, and whose space above (what the cut left outside) reaches space seen empty,
+//!   is a passage from the platform into the object's seen inside: a vase, cup or bowl whose
+//!   inside no view saw down to its floor, which the cut left open onto the platform (the
+//!   platform borders seen-empty space), so that a vase came out as a tube and a bowl with a
+//!   hole through its floor. The region becomes solid: a bottom one cell thick, or up to
+//!   where a view saw the space over it within the band (the floor's own readings were
+//!   clipped; the cells in front of them were seen). The cavity keeps the shape the cut
+//!   gave it otherwise. A hollow under the object that reaches nothing seen (the underside
+//!   of a figure standing on its rim) stays as the cut left it, and so does a region where
+//!   a view saw the platform through the object (a ring or a tube on its end, wide enough
+//!   to look into): a reading further than the carving margin from the foot can only be
+//!   the platform's.
+
+use std::collections::VecDeque;
+
+use voxoct_core::Seen;
+
+use super::Known;
+use super::walls::BoxGrid;
+
+/// Where the platform is in a box of cells given to [`super::close_cells`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Platform {
+    /// The layer of cells on the platform (grid coordinates); cells below it are excluded.
+    pub floor: u32,
+    /// How many layers above `floor` lost their readings to the clip box (the object's foot
+    /// there is unobserved); 0 when the clip box keeps everything above the platform.
+    pub clipped: u32,
+}
+
+/// The layers of a box (its cells x fastest, then y, then z) from the platform's `floor`
+/// (box coordinates) up through the clipped band and the layer above it, where the clipped
+/// triangles' ragged lower edge ends.
+struct Band {
+    dims: [usize; 3],
+    floor: usize,
+    /// The highest clipped layer.
+    clipped_top: usize,
+    /// The layer above it.
+    top: usize,
+}
+
+impl Band {
+    /// `None` when the floor is not in the box.
+    fn new(dims: [usize; 3], floor: usize, clipped: usize) -> Option<Self> {
+        (floor < dims[1]).then(|| Self {
+            dims,
+            floor,
+            clipped_top: (floor + clipped).min(dims[1] - 1),
+            top: (floor + clipped + 1).min(dims[1] - 1),
+        })
+    }
+
+    fn at(&self, x: usize, y: usize, z: usize) -> usize {
+        (z * self.dims[1] + y) * self.dims[0] + x
+    }
+
+    /// The cells of column `(x, z)` in the band, from the floor up.
+    fn column(&self, x: usize, z: usize) -> impl Iterator<Item = usize> + '_ {
+        (self.floor..=self.top).map(move |y| self.at(x, y, z))
+    }
+}
+
+/// The first rule (module docs): every column of `known` (a box of `dims` cells) whose lowest
+/// solid cell lies in the band of `clipped` layers over the layer `floor` (box coordinates),
+/// that is solid from there up through the layer above the band, and whose cells below it
+/// are all unknown, is made solid down to `floor`.
+pub(super) fn extend_into_band(
+    dims: [usize; 3],
+    known: &mut [Known],
+    floor: usize,
+    clipped: usize,
+) {
+    let Some(band) = Band::new(dims, floor, clipped) else {
+        return;
+    };
+    for z in 0..dims[2] {
+        for x in 0..dims[0] {
+            let column: Vec<usize> = band.column(x, z).collect();
+            let Some(lowest) = column.iter().position(|&i| known[i] == Known::Solid) else {
+                continue;
+            };
+            // Solid from there up through the layer above the band: something stands on the
+            // column (a lone cell of noise beside a face, or a ledge, does not).
+            let stands = lowest + band.floor <= band.clipped_top
+                && column[lowest..].iter().all(|&i| known[i] == Known::Solid);
+            if stands && column[..lowest].iter().all(|&i| known[i] == Known::Unknown) {
+                for &i in &column[..lowest] {
+                    known[i] = Known::Solid;
+                }
+            }
+        }
+    }
+}
+
+/// The second rule (module docs): the cells of the layer `floor` of `inside` (the cut's
+/// result on a box of `dims` cells) that a flood over that layer cannot reach are made
+/// inside. The flood starts from the box's border and from the cells where the platform was
+/// seen — empty to `known`, or in front of or on some reading (`seen`), further than
+/// `margin` cells (the carving margin) from every foot column — and stops at the foot: the
+/// columns inside somewhere in the band of `clipped` layers over `floor` (a wall that
+/// slants steps in and out from layer to layer). Only unknown cells are made inside;
+/// returns how many.
+pub(super) fn cover_footprints(
+    dims: [usize; 3],
+    inside: &mut [bool],
+    known: &[Known],
+    seen: &[Seen],
+    (floor, clipped): (usize, usize),
+    margin: f32,
+) -> usize {
+    let Some(band) = Band::new(dims, floor, clipped) else {
+        return 0;
+    };
+    let [nx, _, nz] = dims;
+    let foot: Vec<bool> = (0..nx * nz)
+        .map(|c| band.column(c % nx, c / nx).any(|i| inside[i]))
+        .collect();
+    let distance = distance_from(&foot, nx, nz);
+    let platform_seen = |x: usize, z: usize| {
+        let i = band.at(x, floor, z);
+        (known[i] == Known::Empty || matches!(seen[i], Seen::Surface | Seen::Empty))
+            && distance[z * nx + x] as f32 > margin
+    };
+    let mut reached = vec![false; nx * nz];
+    let mut stack = Vec::new();
+    for z in 0..nz {
+        for x in 0..nx {
+            let border = x == 0 || z == 0 || x + 1 == nx || z + 1 == nz;
+            if !foot[z * nx + x] && (border || platform_seen(x, z)) {
+                reached[z * nx + x] = true;
+                stack.push((x, z));
+            }
+        }
+    }
+    while let Some((x, z)) = stack.pop() {
+        let neighbours = [
+            (x.wrapping_sub(1), z),
+            (x + 1, z),
+            (x, z.wrapping_sub(1)),
+            (x, z + 1),
+        ];
+        for (a, b) in neighbours {
+            let c = b * nx + a;
+            if a < nx && b < nz && !reached[c] && !foot[c] {
+                reached[c] = true;
+                stack.push((a, b));
+            }
+        }
+    }
+    // Each enclosed region, with the space over it that the cut left outside: covered if
+    // that space reaches space seen empty (a passage from the platform into the object's
+    // seen inside: a vessel without its bottom); a hollow under the object that no view
+    // saw into stays as the cut left it (the underside of a figure standing on its rim).
+    let mut covered = vec![false; nx * nz];
+    let mut region = Vec::new();
+    let mut searches = None;
+    for start in 0..nx * nz {
+        if reached[start] || foot[start] {
+            continue;
+        }
+        region.clear();
+        region.push(start);
+        reached[start] = true;
+        let mut k = 0;
+        while k < region.len() {
+            let (x, z) = (region[k] % nx, region[k] / nx);
+            k += 1;
+            for (a, b) in [
+                (x.wrapping_sub(1), z),
+                (x + 1, z),
+                (x, z.wrapping_sub(1)),
+                (x, z + 1),
+            ] {
+                let c = b * nx + a;
+                if a < nx && b < nz && !reached[c] && !foot[c] {
+                    reached[c] = true;
+                    region.push(c);
+                }
+            }
+        }
+        let cells = region.iter().map(|&c| band.at(c % nx, floor, c / nx));
+        let searches = searches.get_or_insert_with(|| Searches::new(inside.len()));
+        if searches.reaches_seen_empty(dims, inside, (known, seen), cells) {
+            for &c in &region {
+                covered[c] = true;
+            }
+        }
+    }
+    // The foot's own cells on the platform that the cut left outside, next to a covered
+    // region, are covered with it (the bottom meets the foot).
+    let next_to_covered = |x: usize, z: usize| {
+        [
+            (x.wrapping_sub(1), z),
+            (x + 1, z),
+            (x, z.wrapping_sub(1)),
+            (x, z + 1),
+        ]
+        .into_iter()
+        .any(|(a, b)| a < nx && b < nz && covered[b * nx + a] && !foot[b * nx + a])
+    };
+    let mut count = 0;
+    for z in 0..nz {
+        for x in 0..nx {
+            let c = z * nx + x;
+            if !(covered[c] || (foot[c] && next_to_covered(x, z))) {
+                continue;
+            }
+            // The platform's layer, and up through the band to a cell that a view saw
+            // there (the cells in front of the object's floor, whose own readings the clip
+            // removed): the floor is below it. Without one (no view saw into the cavity down
+            // to the band), the least bottom: the platform's layer alone.
+            let column: Vec<usize> = band.column(x, z).collect();
+            let seen_at = column
+                .iter()
+                .skip(1)
+                .position(|&i| !(inside[i] || known[i] == Known::Unknown && hidden(seen[i])))
+                .map_or(1, |p| p + 1);
+            for &i in &column[..seen_at] {
+                let bottom = i == column[0] || hidden(seen[i]);
+                if !inside[i] && known[i] == Known::Unknown && bottom {
+                    inside[i] = true;
+                    count += 1;
+                }
+            }
+        }
+    }
+    count
+}
+
+/// The searches of [`Searches::reaches_seen_empty`] over one box, each cell labelled by the
+/// search that met it first.
+struct Searches {
+    label: Vec<u32>,
+    /// What each search found (index: its label − 1).
+    found: Vec<bool>,
+}
+
+impl Searches {
+    fn new(cells: usize) -> Self {
+        Self {
+            label: vec![0; cells],
+            found: Vec::new(),
+        }
+    }
+
+    /// Whether the cells that `inside` leaves outside, 6-connected to `from` (through cells
+    /// `known` does not exclude), include one that some view saw empty (`seen`: in front of
+    /// a reading by more than the carving margin; a cell only outside an observed surface
+    /// does not count, the back of a thin wall can touch it). A cell an earlier search met
+    /// answers with that search's answer: it is connected to what that search found (a
+    /// search that found nothing has met its whole component).
+    fn reaches_seen_empty(
+        &mut self,
+        dims: [usize; 3],
+        inside: &[bool],
+        (known, seen): (&[Known], &[Seen]),
+        from: impl Iterator<Item = usize>,
+    ) -> bool {
+        let grid = BoxGrid::new(dims);
+        self.found.push(false);
+        let id = self.found.len() as u32;
+        let mut stack = Vec::new();
+        for i in from {
+            if let Some(found) = self.meet(i, id, &mut stack) {
+                return found;
+            }
+        }
+        while let Some(i) = stack.pop() {
+            if seen[i] == Seen::Empty {
+                return self.finish(id, true);
+            }
+            for j in grid.face_neighbours(grid.coord(i)) {
+                if inside[j] || known[j] == Known::Excluded {
+                    continue;
+                }
+                if let Some(found) = self.meet(j, id, &mut stack) {
+                    return found;
+                }
+            }
+        }
+        false
+    }
+
+    /// Search `id` meets cell `i`: labels it and stacks it if no search met it yet; if an
+    /// earlier search did, this one ends with its answer (returned).
+    fn meet(&mut self, i: usize, id: u32, stack: &mut Vec<usize>) -> Option<bool> {
+        match self.label[i] {
+            0 => {
+                self.label[i] = id;
+                stack.push(i);
+                None
+            }
+            l if l == id => None,
+            l => Some(self.finish(id, self.found[l as usize - 1])),
+        }
+    }
+
+    fn finish(&mut self, id: u32, found: bool) -> bool {
+        self.found[id as usize - 1] = found;
+        found
+    }
+}
+
+/// Whether no view saw the cell: it is behind every reading that covers it, or covered by
+/// none.
+fn hidden(seen: Seen) -> bool {
+    matches!(seen, Seen::BehindSurface | Seen::Unseen)
+}
+
+/// Each cell's distance, in steps to any of its 8 neighbours, from the nearest `from` cell
+/// of an `nx` × `nz` layer (`u32::MAX` without any).
+fn distance_from(from: &[bool], nx: usize, nz: usize) -> Vec<u32> {
+    let mut distance = vec![u32::MAX; nx * nz];
+    let mut queue = VecDeque::new();
+    for (c, _) in from.iter().enumerate().filter(|(_, f)| **f) {
+        distance[c] = 0;
+        queue.push_back(c);
+    }
+    while let Some(c) = queue.pop_front() {
+        let (x, z) = (c % nx, c / nx);
+        for b in z.saturating_sub(1)..(z + 2).min(nz) {
+            for a in x.saturating_sub(1)..(x + 2).min(nx) {
+                let n = b * nx + a;
+                if distance[n] == u32::MAX {
+                    distance[n] = distance[c] + 1;
+                    queue.push_back(n);
+                }
+            }
+        }
+    }
+    distance
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DIMS: [usize; 3] = [12, 8, 12];
+
+    fn at(x: usize, y: usize, z: usize) -> usize {
+        (z * DIMS[1] + y) * DIMS[0] + x
+    }
+
+    /// A box with a square ring of solid cells (`x, z` in 2..=9 on its border, every
+    /// layer), unknown elsewhere, and no cell seen.
+    fn ring() -> (Vec<Known>, Vec<Seen>) {
+        let n = DIMS.iter().product();
+        let mut known = vec![Known::Unknown; n];
+        for y in 0..DIMS[1] {
+            for a in 2..=9 {
+                for (x, z) in [(a, 2), (a, 9), (2, a), (9, a)] {
+                    known[at(x, y, z)] = Known::Solid;
+                }
+            }
+        }
+        (known, vec![Seen::Unseen; n])
+    }
+
+    /// The cells inside the ring (`x, z` in 3..=8) in layer `y`.
+    fn within_ring(y: usize) -> impl Iterator<Item = usize> {
+        (3..=8).flat_map(move |z| (3..=8).map(move |x| at(x, y, z)))
+    }
+
+    #[test]
+    fn the_clipped_band_is_extended_to_the_floor() {
+        let n = DIMS.iter().product();
+        let mut known = vec![Known::Unknown; n];
+        // A leg: solid from layer 2 up through the layer above the band (3 + 1): extended.
+        for y in 2..DIMS[1] {
+            known[at(1, y, 1)] = Known::Solid;
+        }
+        // A cell below it was seen empty: kept.
+        for y in 2..DIMS[1] {
+            known[at(4, y, 4)] = Known::Solid;
+        }
+        known[at(4, 0, 4)] = Known::Empty;
+        // A lone cell in the band (noise beside a face, or a ledge): kept.
+        known[at(7, 3, 2)] = Known::Solid;
+        // Above the band: kept.
+        for y in 5..DIMS[1] {
+            known[at(7, y, 7)] = Known::Solid;
+        }
+        let before = known.iter().filter(|&&k| k == Known::Solid).count();
+        extend_into_band(DIMS, &mut known, 0, 3);
+        assert!((0..2).all(|y| known[at(1, y, 1)] == Known::Solid));
+        assert!(known[at(4, 1, 4)] == Known::Unknown && known[at(4, 0, 4)] == Known::Empty);
+        assert!((0..3).all(|y| known[at(7, y, 2)] == Known::Unknown));
+        assert!((0..5).all(|y| known[at(7, y, 7)] == Known::Unknown));
+        let solid = known.iter().filter(|&&k| k == Known::Solid).count();
+        assert_eq!(solid, before + 2, "nothing else changed");
+    }
+
+    /// The inside of the ring on the floor (6 × 6 cells), after `cover_footprints` with the
+    /// ring's inside seen as `floor_seen` and a cell seen empty above it or not.
+    fn covered(floor_seen: Seen, seen_empty_above: bool) -> usize {
+        let (mut known, mut seen) = ring();
+        for i in within_ring(0) {
+            seen[i] = floor_seen;
+        }
+        if seen_empty_above {
+            seen[at(5, 6, 5)] = Seen::Empty;
+            known[at(5, 6, 5)] = Known::Empty;
+        }
+        let mut inside: Vec<bool> = known.iter().map(|&k| k == Known::Solid).collect();
+        let count = cover_footprints(DIMS, &mut inside, &known, &seen, (0, 3), 1.0);
+        let on_floor = within_ring(0).filter(|&i| inside[i]).count();
+        assert_eq!(on_floor, count, "only the floor's cells are covered");
+        count
+    }
+
+    #[test]
+    fn a_cavity_open_to_seen_space_gets_a_bottom() {
+        assert_eq!(covered(Seen::Unseen, true), 36);
+        assert_eq!(covered(Seen::BehindSurface, true), 36);
+    }
+
+    /// A bottom whose top the views saw in the band (the cells in front of it, layer 3):
+    /// the hidden cells below it are covered, three layers.
+    #[test]
+    fn a_bottom_seen_in_the_band_reaches_up_to_it() {
+        let (known, mut seen) = ring();
+        for y in 0..DIMS[1] {
+            let verdict = if y < 3 {
+                Seen::BehindSurface
+            } else {
+                Seen::Surface
+            };
+            for i in within_ring(y) {
+                seen[i] = verdict;
+            }
+        }
+        seen[at(5, 6, 5)] = Seen::Empty;
+        let mut inside: Vec<bool> = known.iter().map(|&k| k == Known::Solid).collect();
+        assert_eq!(
+            cover_footprints(DIMS, &mut inside, &known, &seen, (0, 3), 1.0),
+            36 * 3
+        );
+        assert!((0..3).all(|y| within_ring(y).all(|i| inside[i])));
+    }
+
+    #[test]
+    fn a_hollow_under_the_object_stays_open() {
+        assert_eq!(covered(Seen::Unseen, false), 0);
+    }
+
+    #[test]
+    fn a_platform_seen_through_the_object_stays_open() {
+        assert_eq!(covered(Seen::Surface, true), 0);
+    }
+}
