@@ -12,7 +12,8 @@
 //!   of noise beside a face), and below which nothing was seen empty, is continued down to
 //!   the platform: the object rests on it.
 //! - **A vessel's hidden inside gets a bottom** ([`cover_footprints`], after the cut). On
-//!   the platform's layer, a region that the object's foot encloses, where no view saw the
+//!   the platform's layer, a region that the object's foot encloses (the outline of what is
+//!   solid from the platform up to a carving margin over the band), where no view saw the
 //!   platform, and whose space above (what the cut left outside) reaches space seen empty,
 //!   is a passage from the platform into the object's seen inside: a vase, cup or bowl whose
 //!   inside no view saw down to its floor, which the cut left open onto the platform (the
@@ -44,8 +45,8 @@ pub struct Platform {
 }
 
 /// The layers of a box (its cells x fastest, then y, then z) from the platform's `floor`
-/// (box coordinates) up through the clipped band and the layer above it, where the clipped
-/// triangles' ragged lower edge ends.
+/// (box coordinates) up through the clipped band and the layer above it, the first whose
+/// readings are whole.
 struct Band {
     dims: [usize; 3],
     floor: usize,
@@ -108,14 +109,18 @@ pub(super) fn extend_into_band(
     }
 }
 
-/// The second rule (module docs): the cells of the layer `floor` of `inside` (the cut's
-/// result on a box of `dims` cells) that a flood over that layer cannot reach are made
-/// inside. The flood starts from the box's border and from the cells where the platform was
-/// seen — empty to `known`, or in front of or on some reading (`seen`), further than
-/// `margin` cells (the carving margin) from every foot column — and stops at the foot: the
-/// columns inside somewhere in the band of `clipped` layers over `floor` (a wall that
-/// slants steps in and out from layer to layer). Only unknown cells are made inside;
-/// returns how many.
+/// The second rule (module docs) on `inside`, the cut's result on a box of `dims` cells
+/// whose layer `floor` is the platform's and the `clipped` layers above it lost their
+/// readings. The object's foot is every column inside somewhere from the platform up to
+/// `margin` cells (the carving margin) above the clipped band: the lowest triangles end
+/// above the clip plane by up to a pixel row's height and the depth noise, and a wall that
+/// slants steps in and out from layer to layer, so no one layer closes the outline. A flood
+/// over the platform's layer around the foot starts from the box's border and from the
+/// cells where the platform was seen (empty to `known`, or in front of or on some reading
+/// by `seen`, further than `margin` from the foot: not the foot's own readings); each region
+/// it does not reach, whose space above reaches a cell seen empty, is made inside (only
+/// unknown cells, no view saw): its cell on the platform, and up through the band to the
+/// first cell a view saw there if there is one. Returns how many cells.
 pub(super) fn cover_footprints(
     dims: [usize; 3],
     inside: &mut [bool],
@@ -128,8 +133,10 @@ pub(super) fn cover_footprints(
         return 0;
     };
     let [nx, _, nz] = dims;
+    let foot_top = (band.clipped_top + margin.max(1.0).ceil() as usize).min(dims[1] - 1);
+    // (`margin` is at least one cell: the layer above the band.)
     let foot: Vec<bool> = (0..nx * nz)
-        .map(|c| band.column(c % nx, c / nx).any(|i| inside[i]))
+        .map(|c| (floor..=foot_top).any(|y| inside[band.at(c % nx, y, c / nx)]))
         .collect();
     let distance = distance_from(&foot, nx, nz);
     let platform_seen = |x: usize, z: usize| {
