@@ -12,7 +12,7 @@
 use std::time::{Duration, Instant};
 
 use voxoct_core::glam::{UVec3, Vec3};
-use voxoct_core::{Cell, GridSpec, Octree, OctreeError, Triangle};
+use voxoct_core::{Cell, GridSpec, HALF_CELL_DIAGONAL, Octree, OctreeError, Triangle};
 use voxoct_depth::calib::{AxisOptions, CalibSnapshot, alignment_residual};
 use voxoct_depth::filter::FilterChain;
 use voxoct_depth::noise::kinect_v1_sigma;
@@ -784,7 +784,7 @@ fn close_unseen(
         .transform_point3(Vec3::ZERO);
     let centre = (grid.cell_center(lo) + grid.cell_center(hi)) * 0.5;
     let distance = centre.distance(camera);
-    let margin = 2.0 * kinect_v1_sigma(distance) + 0.87 * grid.cell;
+    let margin = 2.0 * kinect_v1_sigma(distance) + HALF_CELL_DIAGONAL * grid.cell;
     let seen = visibility(views, grid, lo, hi, margin);
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.

@@ -142,6 +142,10 @@ impl Triangle {
     }
 }
 
+/// Half a cube's space diagonal in units of its edge, `√3 / 2`: the farthest a plane that
+/// touches a cell of a [`GridSpec`] can pass from the cell's centre, in cells.
+pub const HALF_CELL_DIAGONAL: Real = 0.866_025_4;
+
 /// A regular cubic grid: the cells of one octree depth.
 ///
 /// Cell `(i, j, k)` spans `origin + cell * (i, j, k)` to `origin + cell * (i + 1, j + 1, k + 1)`;

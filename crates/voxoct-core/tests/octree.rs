@@ -338,7 +338,11 @@ fn snapshot_parallel_equals_serial_and_is_compact() {
     let g = serial.leaf_grid();
     for c in &s {
         let d = g.cell_center(c.coord).distance(snapshot::CENTRE) - snapshot::RADIUS;
-        assert!(d.abs() <= g.cell * 0.87 + 3e-4, "leaf {:?} at {d}", c.coord);
+        assert!(
+            d.abs() <= g.cell * voxoct_core::HALF_CELL_DIAGONAL + 3e-4,
+            "leaf {:?} at {d}",
+            c.coord
+        );
         // Normals face the sensor (outward from the sphere): mean sdf grows outward.
         assert!(
             (c.mean_sdf() - d).abs() <= g.cell * 0.9,

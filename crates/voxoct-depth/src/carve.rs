@@ -137,7 +137,7 @@ impl CarveView<'_> {
 
 /// Half a cell's diagonal, in cells: the farthest a surface through a cell lies from its
 /// centre.
-const HALF_DIAGONAL: f32 = 0.866;
+const HALF_DIAGONAL: f32 = voxoct_core::HALF_CELL_DIAGONAL;
 
 /// Settles the marked cells (`hits > 0`) on which their own triangles and the views
 /// disagree about the side of the surface they lie on. Returns how many it changed.

@@ -277,8 +277,9 @@ pub(crate) fn crossing(placement: Placement, fp: f32, fq: f32, len: f32) -> f32 
 /// Largest signed distance a cell marked by triangles can hold, in cells: the plane of a
 /// triangle that touches the cell passes within half its diagonal of its centre. A value
 /// below its negative (`-inf` for an enclosed cell or one the closure adds) is an
-/// inside cell that no triangle observed.
-const HALF_DIAGONAL: f32 = 0.867;
+/// inside cell that no triangle observed. (A thousandth of a cell over the half diagonal:
+/// the mean of the triangles' distances carries rounding.)
+const HALF_DIAGONAL: f32 = voxoct_core::HALF_CELL_DIAGONAL + 1e-3;
 
 /// Whether `f` is an inside cell that no triangle observed (see [`HALF_DIAGONAL`]).
 #[inline]

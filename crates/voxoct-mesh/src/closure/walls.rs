@@ -50,7 +50,7 @@ use crate::par;
 const NORMAL_CONE_COS: f32 = std::f32::consts::FRAC_1_SQRT_2;
 
 /// Half a cell's diagonal, in cells.
-const HALF_DIAGONAL: f32 = 0.866;
+const HALF_DIAGONAL: f32 = voxoct_core::HALF_CELL_DIAGONAL;
 
 /// The least wall thickness, in cells, that counts as measured when a surface's position is
 /// uncertain by `margin` cells (the carving margin: two standard deviations of the sensor's
