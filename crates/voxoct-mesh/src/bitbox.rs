@@ -60,7 +60,7 @@ impl BitBox {
         self.bits[r * self.w + x / 64] |= 1 << (x % 64);
     }
 
-    #[cfg(test)]
+    #[inline]
     pub fn get(&self, x: usize, r: usize) -> bool {
         self.bits[r * self.w + x / 64] >> (x % 64) & 1 == 1
     }

@@ -32,7 +32,7 @@ use std::collections::VecDeque;
 use voxoct_core::Seen;
 
 use super::Known;
-use super::walls::BoxGrid;
+use crate::bitbox::{BitBox, Flood};
 
 /// Where the platform is in a box of cells given to [`super::close_cells`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -176,7 +176,7 @@ pub(super) fn cover_footprints(
     // saw into stays as the cut left it (the underside of a figure standing on its rim).
     let mut covered = vec![false; nx * nz];
     let mut region = Vec::new();
-    let mut searches = None;
+    let mut reach = None;
     for start in 0..nx * nz {
         if reached[start] || foot[start] {
             continue;
@@ -201,9 +201,10 @@ pub(super) fn cover_footprints(
                 }
             }
         }
-        let cells = region.iter().map(|&c| band.at(c % nx, floor, c / nx));
-        let searches = searches.get_or_insert_with(|| Searches::new(inside.len()));
-        if searches.reaches_seen_empty(dims, inside, (known, seen), cells) {
+        let reach: &BitBox =
+            reach.get_or_insert_with(|| reaching_seen_space(dims, inside, known, seen));
+        let row = |c: usize| (c / nx) * dims[1] + floor;
+        if region.iter().any(|&c| reach.get(c % nx, row(c))) {
             for &c in &region {
                 covered[c] = true;
             }
@@ -250,78 +251,41 @@ pub(super) fn cover_footprints(
     count
 }
 
-/// The searches of [`Searches::reaches_seen_empty`] over one box, each cell labelled by the
-/// search that met it first.
-struct Searches {
-    label: Vec<u32>,
-    /// What each search found (index: its label − 1).
-    found: Vec<bool>,
-}
-
-impl Searches {
-    fn new(cells: usize) -> Self {
-        Self {
-            label: vec![0; cells],
-            found: Vec::new(),
-        }
-    }
-
-    /// Whether the cells that `inside` leaves outside, 6-connected to `from` (through cells
-    /// `known` does not exclude), include one that some view saw empty (`seen`: in front of
-    /// a reading by more than the carving margin; a cell only outside an observed surface
-    /// does not count, the back of a thin wall can touch it). A cell an earlier search met
-    /// answers with that search's answer: it is connected to what that search found (a
-    /// search that found nothing has met its whole component).
-    fn reaches_seen_empty(
-        &mut self,
-        dims: [usize; 3],
-        inside: &[bool],
-        (known, seen): (&[Known], &[Seen]),
-        from: impl Iterator<Item = usize>,
-    ) -> bool {
-        let grid = BoxGrid::new(dims);
-        self.found.push(false);
-        let id = self.found.len() as u32;
-        let mut stack = Vec::new();
-        for i in from {
-            if let Some(found) = self.meet(i, id, &mut stack) {
-                return found;
+/// The cells of a box of `dims` cells that `inside` leaves outside (and `known` does not
+/// exclude) connected to a cell that some view saw empty (`seen`: in front of a reading by
+/// more than the carving margin; a cell only outside an observed surface does not count,
+/// the back of a thin wall can touch it), along the mesher's Kuhn connectivity: one
+/// row-at-a-time flood from the cells seen empty.
+fn reaching_seen_space(
+    dims: [usize; 3],
+    inside: &[bool],
+    known: &[Known],
+    seen: &[Seen],
+) -> BitBox {
+    let nx = dims[0];
+    let mut free = BitBox::new(dims);
+    for r in 0..dims[1] * dims[2] {
+        for x in 0..nx {
+            let i = r * nx + x;
+            if !inside[i] && known[i] != Known::Excluded {
+                free.set(x, r);
             }
         }
-        while let Some(i) = stack.pop() {
-            if seen[i] == Seen::Empty {
-                return self.finish(id, true);
-            }
-            for j in grid.face_neighbours(grid.coord(i)) {
-                if inside[j] || known[j] == Known::Excluded {
-                    continue;
-                }
-                if let Some(found) = self.meet(j, id, &mut stack) {
-                    return found;
-                }
-            }
-        }
-        false
     }
-
-    /// Search `id` meets cell `i`: labels it and stacks it if no search met it yet; if an
-    /// earlier search did, this one ends with its answer (returned).
-    fn meet(&mut self, i: usize, id: u32, stack: &mut Vec<usize>) -> Option<bool> {
-        match self.label[i] {
-            0 => {
-                self.label[i] = id;
-                stack.push(i);
-                None
-            }
-            l if l == id => None,
-            l => Some(self.finish(id, self.found[l as usize - 1])),
+    let mut reached = BitBox::new(dims);
+    let mut flood = Flood::new(&free);
+    let mut seeds = vec![0u64; free.w];
+    for r in 0..dims[1] * dims[2] {
+        seeds.fill(0);
+        for x in (0..nx).filter(|&x| seen[r * nx + x] == Seen::Empty) {
+            seeds[x / 64] |= 1 << (x % 64);
+        }
+        if seeds.iter().any(|&w| w != 0) {
+            flood.seed(&free, &mut reached, r, &seeds, &mut |_, _, _| {});
         }
     }
-
-    fn finish(&mut self, id: u32, found: bool) -> bool {
-        self.found[id as usize - 1] = found;
-        found
-    }
+    flood.run(&free, &mut reached, &mut |_, _, _| {});
+    reached
 }
 
 /// Whether no view saw the cell: it is behind every reading that covers it, or covered by

@@ -88,20 +88,20 @@ enum End {
 
 /// The cells of a box, `dims` in x-fastest order.
 #[derive(Clone, Copy)]
-pub(super) struct BoxGrid {
+struct BoxGrid {
     dims: [usize; 3],
     strides: [usize; 3],
 }
 
 impl BoxGrid {
-    pub(super) fn new(dims: [usize; 3]) -> Self {
+    fn new(dims: [usize; 3]) -> Self {
         Self {
             dims,
             strides: [1, dims[0], dims[0] * dims[1]],
         }
     }
 
-    pub(super) fn coord(&self, i: usize) -> [usize; 3] {
+    fn coord(&self, i: usize) -> [usize; 3] {
         let [nx, ny, _] = self.dims;
         [i % nx, (i / nx) % ny, i / (nx * ny)]
     }
@@ -120,7 +120,7 @@ impl BoxGrid {
     }
 
     /// The (up to six) cells that share a face with the cell at `c`.
-    pub(super) fn face_neighbours(&self, c: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
+    fn face_neighbours(&self, c: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
         (0..6).filter_map(move |k| {
             let mut d = [0i64; 3];
             d[k / 2] = if k % 2 == 0 { -1 } else { 1 };
