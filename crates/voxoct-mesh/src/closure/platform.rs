@@ -133,7 +133,10 @@ pub(super) fn cover_footprints(
         return 0;
     };
     let [nx, _, nz] = dims;
-    let foot_top = (band.clipped_top + margin.max(1.0).ceil() as usize).min(dims[1] - 1);
+    let foot_top = (band
+        .clipped_top
+        .saturating_add(margin.max(1.0).ceil() as usize))
+    .min(dims[1] - 1);
     // (`margin` is at least one cell: the layer above the band.)
     let foot: Vec<bool> = (0..nx * nz)
         .map(|c| (floor..=foot_top).any(|y| inside[band.at(c % nx, y, c / nx)]))
@@ -151,22 +154,15 @@ pub(super) fn cover_footprints(
             let border = x == 0 || z == 0 || x + 1 == nx || z + 1 == nz;
             if !foot[z * nx + x] && (border || platform_seen(x, z)) {
                 reached[z * nx + x] = true;
-                stack.push((x, z));
+                stack.push(z * nx + x);
             }
         }
     }
-    while let Some((x, z)) = stack.pop() {
-        let neighbours = [
-            (x.wrapping_sub(1), z),
-            (x + 1, z),
-            (x, z.wrapping_sub(1)),
-            (x, z + 1),
-        ];
-        for (a, b) in neighbours {
-            let c = b * nx + a;
-            if a < nx && b < nz && !reached[c] && !foot[c] {
-                reached[c] = true;
-                stack.push((a, b));
+    while let Some(c) = stack.pop() {
+        for n in layer_neighbours(c, nx, nz) {
+            if !reached[n] && !foot[n] {
+                reached[n] = true;
+                stack.push(n);
             }
         }
     }
@@ -186,20 +182,13 @@ pub(super) fn cover_footprints(
         reached[start] = true;
         let mut k = 0;
         while k < region.len() {
-            let (x, z) = (region[k] % nx, region[k] / nx);
-            k += 1;
-            for (a, b) in [
-                (x.wrapping_sub(1), z),
-                (x + 1, z),
-                (x, z.wrapping_sub(1)),
-                (x, z + 1),
-            ] {
-                let c = b * nx + a;
-                if a < nx && b < nz && !reached[c] && !foot[c] {
-                    reached[c] = true;
-                    region.push(c);
+            for n in layer_neighbours(region[k], nx, nz) {
+                if !reached[n] && !foot[n] {
+                    reached[n] = true;
+                    region.push(n);
                 }
             }
+            k += 1;
         }
         let reach: &BitBox =
             reach.get_or_insert_with(|| reaching_seen_space(dims, inside, known, seen));
@@ -212,21 +201,12 @@ pub(super) fn cover_footprints(
     }
     // The foot's own cells on the platform that the cut left outside, next to a covered
     // region, are covered with it (the bottom meets the foot).
-    let next_to_covered = |x: usize, z: usize| {
-        [
-            (x.wrapping_sub(1), z),
-            (x + 1, z),
-            (x, z.wrapping_sub(1)),
-            (x, z + 1),
-        ]
-        .into_iter()
-        .any(|(a, b)| a < nx && b < nz && covered[b * nx + a] && !foot[b * nx + a])
-    };
+    let next_to_covered = |c: usize| layer_neighbours(c, nx, nz).any(|n| covered[n] && !foot[n]);
     let mut count = 0;
     for z in 0..nz {
         for x in 0..nx {
             let c = z * nx + x;
-            if !(covered[c] || (foot[c] && next_to_covered(x, z))) {
+            if !(covered[c] || (foot[c] && next_to_covered(c))) {
                 continue;
             }
             // The platform's layer, and up through the band to a cell that a view saw
@@ -292,6 +272,19 @@ fn reaching_seen_space(
 /// none.
 fn hidden(seen: Seen) -> bool {
     matches!(seen, Seen::BehindSurface | Seen::Unseen)
+}
+
+/// The (up to four) cells that share an edge with cell `c` of an `nx` × `nz` layer.
+fn layer_neighbours(c: usize, nx: usize, nz: usize) -> impl Iterator<Item = usize> {
+    let (x, z) = (c % nx, c / nx);
+    [
+        (x > 0).then(|| c - 1),
+        (x + 1 < nx).then(|| c + 1),
+        (z > 0).then(|| c - nx),
+        (z + 1 < nz).then(|| c + nx),
+    ]
+    .into_iter()
+    .flatten()
 }
 
 /// Each cell's distance, in steps to any of its 8 neighbours, from the nearest `from` cell
