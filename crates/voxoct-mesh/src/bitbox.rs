@@ -105,11 +105,13 @@ impl BitBox {
         }
         let [_, ny, nz] = self.n;
         // y, then z: each output row is the OR of the source rows within k.
-        for (stride, len) in [(1usize, ny), (ny, nz)] {
+        // (Which axis a pass is on is told by the pass, not by its stride: with one layer,
+        // ny = 1, both strides are 1 and the z pass took y for its coordinate.)
+        for (along_y, stride, len) in [(true, 1usize, ny), (false, ny, nz)] {
             let src = self.bits.clone();
             for r in 0..self.rows() {
                 let (y, z) = (r % ny, r / ny);
-                let t = if stride == 1 { y } else { z };
+                let t = if along_y { y } else { z };
                 let lo = t.saturating_sub(k);
                 let hi = (t + k).min(len - 1);
                 let row = &mut self.bits[r * w..(r + 1) * w];
@@ -306,6 +308,20 @@ pub(crate) fn remove_small_groups(b: &mut BitBox, min: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A single layer (ny = 1) dilates along z too: one set cell becomes a square.
+    #[test]
+    fn a_single_layer_dilates_in_x_and_z() {
+        let mut b = BitBox::new([9, 1, 9]);
+        b.set(4, 4);
+        b.dilate(2);
+        for z in 0..9usize {
+            for x in 0..9usize {
+                let want = x.abs_diff(4) <= 2 && z.abs_diff(4) <= 2;
+                assert_eq!(b.get(x, z), want, "({x}, {z})");
+            }
+        }
+    }
 
     #[test]
     fn fill_runs_fills_whole_runs_across_words() {

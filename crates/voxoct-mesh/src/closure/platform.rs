@@ -27,8 +27,6 @@
 //!   to look into): a reading further than the carving margin from the foot can only be
 //!   the platform's.
 
-use std::collections::VecDeque;
-
 use voxoct_core::Seen;
 
 use super::Known;
@@ -92,16 +90,23 @@ pub(super) fn extend_into_band(
     };
     for z in 0..dims[2] {
         for x in 0..dims[0] {
-            let column: Vec<usize> = band.column(x, z).collect();
-            let Some(lowest) = column.iter().position(|&i| known[i] == Known::Solid) else {
+            let Some(lowest) = band.column(x, z).position(|i| known[i] == Known::Solid) else {
                 continue;
             };
             // Solid from there up through the layer above the band: something stands on the
             // column (a lone cell of noise beside a face, or a ledge, does not).
             let stands = lowest + band.floor <= band.clipped_top
-                && column[lowest..].iter().all(|&i| known[i] == Known::Solid);
-            if stands && column[..lowest].iter().all(|&i| known[i] == Known::Unknown) {
-                for &i in &column[..lowest] {
+                && band
+                    .column(x, z)
+                    .skip(lowest)
+                    .all(|i| known[i] == Known::Solid);
+            if stands
+                && band
+                    .column(x, z)
+                    .take(lowest)
+                    .all(|i| known[i] == Known::Unknown)
+            {
+                for i in band.column(x, z).take(lowest) {
                     known[i] = Known::Solid;
                 }
             }
@@ -141,55 +146,36 @@ pub(super) fn cover_footprints(
     let foot: Vec<bool> = (0..nx * nz)
         .map(|c| (floor..=foot_top).any(|y| inside[band.at(c % nx, y, c / nx)]))
         .collect();
-    let distance = distance_from(&foot, nx, nz);
+    // The cells within the margin of the foot (L∞, whole cells): a reading there may be the
+    // foot's own.
+    let mut near_foot = BitBox::new([nx, 1, nz]);
+    for (c, _) in foot.iter().enumerate().filter(|(_, f)| **f) {
+        near_foot.set(c % nx, c / nx);
+    }
+    near_foot.dilate((margin.max(0.0).floor() as usize).min(nx.max(nz)));
     let platform_seen = |x: usize, z: usize| {
         let i = band.at(x, floor, z);
         (known[i] == Known::Empty || matches!(seen[i], Seen::Surface | Seen::Empty))
-            && distance[z * nx + x] as f32 > margin
+            && !near_foot.get(x, z)
     };
     let mut reached = vec![false; nx * nz];
-    let mut stack = Vec::new();
-    for z in 0..nz {
-        for x in 0..nx {
-            let border = x == 0 || z == 0 || x + 1 == nx || z + 1 == nz;
-            if !foot[z * nx + x] && (border || platform_seen(x, z)) {
-                reached[z * nx + x] = true;
-                stack.push(z * nx + x);
-            }
-        }
-    }
-    while let Some(c) = stack.pop() {
-        for n in layer_neighbours(c, nx, nz) {
-            if !reached[n] && !foot[n] {
-                reached[n] = true;
-                stack.push(n);
-            }
-        }
-    }
+    let seeds = (0..nx * nz).filter(|&c| {
+        let (x, z) = (c % nx, c / nx);
+        let border = x == 0 || z == 0 || x + 1 == nx || z + 1 == nz;
+        !foot[c] && (border || platform_seen(x, z))
+    });
+    spread(seeds.collect(), &mut reached, &foot, nx, nz);
     // Each enclosed region, with the space over it that the cut left outside: covered if
     // that space reaches space seen empty (a passage from the platform into the object's
     // seen inside: a vessel without its bottom); a hollow under the object that no view
     // saw into stays as the cut left it (the underside of a figure standing on its rim).
     let mut covered = vec![false; nx * nz];
-    let mut region = Vec::new();
     let mut reach = None;
     for start in 0..nx * nz {
         if reached[start] || foot[start] {
             continue;
         }
-        region.clear();
-        region.push(start);
-        reached[start] = true;
-        let mut k = 0;
-        while k < region.len() {
-            for n in layer_neighbours(region[k], nx, nz) {
-                if !reached[n] && !foot[n] {
-                    reached[n] = true;
-                    region.push(n);
-                }
-            }
-            k += 1;
-        }
+        let region = spread(vec![start], &mut reached, &foot, nx, nz);
         let reach: &BitBox =
             reach.get_or_insert_with(|| reaching_seen_space(dims, inside, known, seen));
         let row = |c: usize| (c / nx) * dims[1] + floor;
@@ -213,14 +199,13 @@ pub(super) fn cover_footprints(
             // there (the cells in front of the object's floor, whose own readings the clip
             // removed): the floor is below it. Without one (no view saw into the cavity down
             // to the band), the least bottom: the platform's layer alone.
-            let column: Vec<usize> = band.column(x, z).collect();
-            let seen_at = column
-                .iter()
+            let seen_at = band
+                .column(x, z)
                 .skip(1)
-                .position(|&i| !(inside[i] || known[i] == Known::Unknown && hidden(seen[i])))
+                .position(|i| !(inside[i] || known[i] == Known::Unknown && hidden(seen[i])))
                 .map_or(1, |p| p + 1);
-            for &i in &column[..seen_at] {
-                let bottom = i == column[0] || hidden(seen[i]);
+            for (k, i) in band.column(x, z).take(seen_at).enumerate() {
+                let bottom = k == 0 || hidden(seen[i]);
                 if !inside[i] && known[i] == Known::Unknown && bottom {
                     inside[i] = true;
                     count += 1;
@@ -287,28 +272,31 @@ fn layer_neighbours(c: usize, nx: usize, nz: usize) -> impl Iterator<Item = usiz
     .flatten()
 }
 
-/// Each cell's distance, in steps to any of its 8 neighbours, from the nearest `from` cell
-/// of an `nx` × `nz` layer (`u32::MAX` without any).
-fn distance_from(from: &[bool], nx: usize, nz: usize) -> Vec<u32> {
-    let mut distance = vec![u32::MAX; nx * nz];
-    let mut queue = VecDeque::new();
-    for (c, _) in from.iter().enumerate().filter(|(_, f)| **f) {
-        distance[c] = 0;
-        queue.push_back(c);
+/// Marks in `reached` (an `nx` × `nz` layer) the cells 4-connected to `from` through cells
+/// that are neither `wall` nor already reached, `from` included (each marked as reached);
+/// returns them.
+fn spread(
+    from: Vec<usize>,
+    reached: &mut [bool],
+    wall: &[bool],
+    nx: usize,
+    nz: usize,
+) -> Vec<usize> {
+    let mut out = from;
+    for &c in &out {
+        reached[c] = true;
     }
-    while let Some(c) = queue.pop_front() {
-        let (x, z) = (c % nx, c / nx);
-        for b in z.saturating_sub(1)..(z + 2).min(nz) {
-            for a in x.saturating_sub(1)..(x + 2).min(nx) {
-                let n = b * nx + a;
-                if distance[n] == u32::MAX {
-                    distance[n] = distance[c] + 1;
-                    queue.push_back(n);
-                }
+    let mut k = 0;
+    while k < out.len() {
+        for n in layer_neighbours(out[k], nx, nz) {
+            if !reached[n] && !wall[n] {
+                reached[n] = true;
+                out.push(n);
             }
         }
+        k += 1;
     }
-    distance
+    out
 }
 
 #[cfg(test)]
