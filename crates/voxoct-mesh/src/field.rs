@@ -85,7 +85,7 @@ fn check_arguments(grid: &GridSpec, opts: &MeshOptions) -> Result<(), MeshError>
 /// Validates the grid and the cells; returns the marked cells as `(coord, value)` with the
 /// value in cells (mean signed distance / cell edge; `-inf` kept, a solid cell without an
 /// observed surface such as the closure adds, `closure::CLOSED_SDF`; 0 when NaN or `+inf`),
-/// and the inside rule. Owned cells are given back part by part as they are converted,
+/// the inside rule and the floor layer, if any (cells below it are dropped). Owned cells are given back part by part as they are converted,
 /// before the fill (they and their conversion are the two largest arrays of a solid's
 /// meshing, and are never both whole).
 pub(crate) fn prepare(
@@ -93,7 +93,7 @@ pub(crate) fn prepare(
     grid: &GridSpec,
     opts: &MeshOptions,
     out: &mut Vec<(UVec3, f32)>,
-) -> Result<Inside, MeshError> {
+) -> Result<(Inside, Option<u32>), MeshError> {
     check_arguments(grid, opts)?;
     if let Some((index, c)) = cells
         .iter()
@@ -171,7 +171,7 @@ pub(crate) fn prepare(
     } else if opts.min_component_cells > 1 {
         remove_small_components(out, opts.min_component_cells, |_| true);
     }
-    Ok(inside)
+    Ok((inside, floor_layer))
 }
 
 /// Drops the cells `member` accepts that belong to connected groups (of such cells) smaller

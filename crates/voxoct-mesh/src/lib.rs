@@ -43,7 +43,9 @@
 //!   `voxoct_depth::carve::visibility`).
 //! - [`Placement::SignedDistance`]: vertices slide along their edges to where the mean signed
 //!   distance stored in each [`Cell`] says the surface is; with `solid` the wall sits on the
-//!   surface itself rather than half a cell outside the outermost marked cells.
+//!   surface itself rather than half a cell outside the outermost marked cells, and the back
+//!   of a wall that no view saw is put half a cell behind the surface that was seen, once the
+//!   mesh is smoothed and simplified (ARCHITECTURE.md, "voxoct-mesh").
 //! - [`Taubin`] smoothing: volume-preserving, positions only.
 //! - [`simplify()`]: quadric-error edge collapse bounded by a geometric error, keeping the mesh
 //!   closed, manifold and free of new self-intersections (see [`Simplify`]).
@@ -76,6 +78,7 @@ pub use voxoct_core::{Cell, GridSpec, Octree};
 use std::borrow::Cow;
 use std::time::{Duration, Instant};
 
+mod backs;
 mod bitbox;
 pub mod closure;
 mod collide;
@@ -127,7 +130,8 @@ pub fn mesh_cells_certified(
     opts: &MeshOptions,
 ) -> Result<(Mesh, bool), MeshError> {
     let mut mesh = Mesh::default();
-    let certified = Mesher::new().run(Cow::Borrowed(cells), grid, opts, &mut mesh, false, true)?;
+    let (certified, _) =
+        Mesher::new().run(Cow::Borrowed(cells), grid, opts, &mut mesh, false, true)?;
     Ok((mesh, certified))
 }
 
@@ -161,9 +165,11 @@ impl Mesher {
     }
 
     /// Meshes into `out`; without `keep`, the working buffers are freed before smoothing
-    /// (lower peak memory for a one-shot mesher); without `smooth`, the marched mesh is left
-    /// unsmoothed (the options are checked all the same). Returns whether the smoothing
-    /// proved the mesh free of self-intersections ([`mesh_cells_certified`]).
+    /// (lower peak memory for a one-shot mesher). With `finish`, the mesh is smoothed and
+    /// the backs of unseen walls are thinned ([`backs`]), and the result says whether that
+    /// proved the mesh free of self-intersections ([`mesh_cells_certified`]); without, the
+    /// marched mesh is left as it is (the options are checked all the same) and the backs
+    /// are returned for the caller to thin once it is done with the mesh.
     fn run(
         &mut self,
         cells: Cow<'_, [Cell]>,
@@ -171,19 +177,36 @@ impl Mesher {
         opts: &MeshOptions,
         out: &mut Mesh,
         keep: bool,
-        smooth: bool,
-    ) -> Result<bool, MeshError> {
+        finish: bool,
+    ) -> Result<(bool, Vec<backs::Back>), MeshError> {
         out.vertices.clear();
         out.triangles.clear();
-        let inside = field::prepare(cells, grid, opts, &mut self.scratch.entries)?;
+        let (inside, floor) = field::prepare(cells, grid, opts, &mut self.scratch.entries)?;
         let inside = (inside, Some(opts.min_component_cells));
-        march::march(&mut self.scratch, grid, inside, opts.placement, out, keep);
-        Ok(smooth
-            && opts
-                .smoothing
-                .as_ref()
-                .is_some_and(|t| smooth::taubin(out, t)))
+        let backs = march::march(
+            &mut self.scratch,
+            grid,
+            inside,
+            opts.placement,
+            floor,
+            out,
+            keep,
+        );
+        if !finish {
+            return Ok((false, backs));
+        }
+        let smoothed = opts
+            .smoothing
+            .as_ref()
+            .is_some_and(|t| smooth::taubin(out, t));
+        Ok((thinned(out, &backs, grid, smoothed), Vec::new()))
     }
+}
+
+/// [`backs::thin`] on `mesh` (the cells' `grid`), given whether `mesh` was proven free of
+/// self-intersections before; returns whether it is after.
+fn thinned(mesh: &mut Mesh, backs: &[backs::Back], grid: &GridSpec, certified: bool) -> bool {
+    backs::thin(mesh, backs, grid.cell).map_or(certified, |proven| proven || certified)
 }
 
 /// Marched triangles past which [`mesh_cells_simplified`] smooths and simplifies the mesh
@@ -235,7 +258,8 @@ pub struct StepTimes {
     /// The fill and marching tetrahedra, with dropping small pieces.
     pub march: Duration,
     /// Taubin smoothing and the untangling that proves the smoothed mesh free of
-    /// self-intersections.
+    /// self-intersections, and, after simplification, putting the backs of unseen walls
+    /// half a cell behind the seen surface (with its own untangling).
     pub smooth: Duration,
     /// Quadric simplification.
     pub simplify: Duration,
@@ -268,7 +292,7 @@ pub fn mesh_cells_simplified(
     let mut times = StepTimes::default();
     let t = Instant::now();
     let mut mesh = Mesh::default();
-    Mesher::new().run(Cow::Owned(cells), grid, opts, &mut mesh, false, false)?;
+    let (_, backs) = Mesher::new().run(Cow::Owned(cells), grid, opts, &mut mesh, false, false)?;
     let whole = mesh.triangles.len() <= PIECES_PAST_TRIANGLES
         || simplify.is_some_and(|s| s.target_triangles.is_some());
     if whole {
@@ -286,6 +310,9 @@ pub fn mesh_cells_simplified(
         let t = Instant::now();
         let stats = simplify.map(|s| simplify::simplify(&mut mesh, s));
         times.simplify = t.elapsed();
+        let t = Instant::now();
+        let certified = thinned(&mut mesh, &backs, grid, certified);
+        times.smooth += t.elapsed();
         return Ok(Simplified {
             mesh,
             certified,
@@ -297,13 +324,16 @@ pub fn mesh_cells_simplified(
     mesh.remove_pieces_below_fraction(min_piece_fraction);
     times.march = t.elapsed();
     let marched_triangles = mesh.triangles.len();
-    let (mesh, certified, stats) = by_pieces(
+    let (mut mesh, certified, stats) = by_pieces(
         mesh,
         opts.smoothing.as_ref(),
         simplify,
         PIECE_GROUP_TRIANGLES,
         &mut times,
     );
+    let t = Instant::now();
+    let certified = thinned(&mut mesh, &backs, grid, certified);
+    times.smooth += t.elapsed();
     Ok(Simplified {
         mesh,
         certified,

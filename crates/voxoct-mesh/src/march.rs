@@ -27,6 +27,7 @@ use std::collections::HashMap;
 use voxoct_core::GridSpec;
 use voxoct_core::glam::{DVec3, UVec3, Vec3};
 
+use crate::backs::{self, Back};
 use crate::mesh::Mesh;
 use crate::options::Placement;
 use crate::par;
@@ -792,14 +793,21 @@ pub(crate) struct Scratch {
 /// diagonals through thin walls are then filled (see [`diagonal_leaks`]). Without `keep`,
 /// each buffer is freed as soon as the passes that read it are done (lower peak memory for
 /// a one-shot mesher; `scratch` is then empty).
+///
+/// Returns the vertices on the backs of walls that no view saw, with the planes of the
+/// surfaces seen in front of them (see [`crate::backs`]; only with [`Inside::NonPositive`]
+/// and [`Placement::SignedDistance`], else none). `floor` is the field's floor layer (grid
+/// coordinates), if it has one: the base of the object, whose edges into the layers below
+/// are never backs, and whose plane is the seen surface of a cavity's floor resting on it.
 pub(crate) fn march(
     scratch: &mut Scratch,
     grid: &GridSpec,
     (inside, peel): (Inside, Option<usize>),
     placement: Placement,
+    floor: Option<u32>,
     out: &mut Mesh,
     keep: bool,
-) {
+) -> Vec<Back> {
     let Scratch {
         entries,
         bricks,
@@ -812,14 +820,13 @@ pub(crate) fn march(
         *entries = Vec::new();
     }
     number_vertices(bricks, first, slot, edges);
-    place_vertices(
+    let backs = place_vertices(
         bricks,
         first,
         slot,
         edges,
         grid,
-        inside,
-        placement,
+        (inside, placement, floor),
         &mut out.vertices,
     );
     if !keep {
@@ -831,6 +838,7 @@ pub(crate) fn march(
     if !keep {
         *scratch = Scratch::default();
     }
+    backs
 }
 
 /// Pass 1: every brick's vertex and triangle counts and, by prefix sums, its first vertex
@@ -867,18 +875,17 @@ fn number_vertices(
 }
 
 /// Pass 2: vertex positions, in index order (each brick fills its own range of
-/// `vertices`, which is cleared first).
-#[allow(clippy::too_many_arguments)]
+/// `vertices`, which is cleared first), and the backs of unseen walls among them (see
+/// [`march`]).
 fn place_vertices(
     bricks: &Bricks,
     first: &[(u32, u32)],
     slot: &[u32],
     edges: &[EdgeRows],
     grid: &GridSpec,
-    inside: Inside,
-    placement: Placement,
+    (inside, placement, floor): (Inside, Placement, Option<u32>),
     vertices: &mut Vec<Vec3>,
-) {
+) -> Vec<Back> {
     let n = bricks.keys.len();
     let count = first[n].0;
     let cell = f64::from(grid.cell);
@@ -886,16 +893,22 @@ fn place_vertices(
     let offset = grid.origin.as_dvec3() + DVec3::splat((0.5 - f64::from(SHIFT)) * cell);
     vertices.clear();
     vertices.resize(count as usize, Vec3::ZERO);
+    let backs_wanted = inside == Inside::NonPositive && placement == Placement::SignedDistance;
+    let floor = floor.map(|f| i64::from(f + SHIFT));
+    let mut backs: Vec<Vec<Back>> = (0..edges.len()).map(|_| Vec::new()).collect();
     let mut ranges = Vec::with_capacity(edges.len());
     let mut rest = &mut vertices[..];
+    let mut brick_backs = backs.iter_mut();
     for b in 0..n {
         let (head, tail) = rest.split_at_mut((first[b + 1].0 - first[b].0) as usize);
-        if slot[b] != NONE {
-            ranges.push((b, head));
+        if slot[b] != NONE
+            && let Some(out) = brick_backs.next()
+        {
+            ranges.push((b, head, out));
         }
         rest = tail;
     }
-    par::for_each_zip(ranges, 0..edges.len(), |_, (b, dst), i| {
+    par::for_each_zip(ranges, 0..edges.len(), |_, (b, dst, brick_backs), i| {
         let rows = &edges[i];
         let key = bricks.keys[b];
         let base = [key[0] * 8, key[1] * 8, key[2] * 8];
@@ -910,6 +923,7 @@ fn place_vertices(
                     while m != 0 {
                         let x = m.trailing_zeros();
                         m &= m - 1;
+                        let mut back = None;
                         let t = if placement == Placement::Midpoint {
                             0.5
                         } else {
@@ -927,6 +941,9 @@ fn place_vertices(
                                 (end(q, fq), end(p, fp))
                             };
                             let t = edge_crossing(bricks, placement, inside, i, o, len);
+                            if backs_wanted && o.0 == f32::INFINITY {
+                                back = back_plane(bricks, inside, floor, i.1, o.1, t);
+                            }
                             if from_p { t } else { 1.0 - t }
                         };
                         let t = f64::from(t);
@@ -936,6 +953,13 @@ fn place_vertices(
                             f64::from(base[2] + z) + t * dirf.z,
                         );
                         let pos = offset + g * cell;
+                        if let Some((normal, depth)) = back {
+                            brick_backs.push(Back {
+                                at: pos.as_vec3(),
+                                normal: normal.as_vec3(),
+                                offset: (normal.dot(pos) - depth * cell) as f32,
+                            });
+                        }
                         if let Some(v) = next.next() {
                             *v = pos.as_vec3();
                         }
@@ -945,6 +969,35 @@ fn place_vertices(
         }
         debug_assert!(next.next().is_none());
     });
+    backs.concat()
+}
+
+/// The plane of the seen surface in front of the vertex at fraction `t` of the edge from
+/// the inside cell `i` to the absent cell `o` (global coordinates), if the vertex is on the
+/// back of a wall no view saw: its unit normal and the vertex's signed distance from it, in
+/// cells. The plane fitted to the marked cells around `i` ([`backs::observed_plane`]);
+/// where none was seen near, and the edge rises from the floor layer into space above the
+/// object's base (the floor-layer cell under `o` is inside: a cavity's floor), the base's
+/// plane half a cell below the floor layer's centres, where the vertices into the layer
+/// below are put. Edges into the layers below the floor are the base itself: `None`.
+fn back_plane(
+    bricks: &Bricks,
+    inside: Inside,
+    floor: Option<i64>,
+    i: [i64; 3],
+    o: [i64; 3],
+    t: f32,
+) -> Option<(DVec3, f64)> {
+    if floor.is_some_and(|f| o[1] < f) {
+        return None;
+    }
+    let value = |g| bricks.value_at(g);
+    backs::observed_plane(value, observed, i, o, t).or_else(|| {
+        let f = floor?;
+        let over_base = i[1] == f && o[1] > f && inside.test(value([o[0], f, o[2]]));
+        let height = 0.5 + f64::from(t) * (o[1] - i[1]) as f64;
+        over_base.then_some((DVec3::NEG_Y, -height))
+    })
 }
 
 /// How far behind an observed surface the back of a wall that no view saw is put, in cells
@@ -968,7 +1021,8 @@ const BACK_STEP_CELLS: f32 = 0.5;
 /// view saw (the inside of a bowl or a vase whose outer wall alone was seen). The back is put
 /// [`UNSEEN_BACK_CELLS`] behind the observed surface instead (at `i`'s centre when that is
 /// farther): a wall of half a cell where the grid allows it, as close to the seen surface as
-/// the closure's prior (unseen surface next to seen surface) asks.
+/// the closure's prior (unseen surface next to seen surface) asks. Where it does not,
+/// [`crate::backs`] moves the finished mesh's vertex there ([`back_plane`] records how).
 fn edge_crossing(
     bricks: &Bricks,
     placement: Placement,
@@ -1327,6 +1381,7 @@ mod tests {
             grid,
             (inside, None),
             Placement::SignedDistance,
+            None,
             &mut mesh,
             keep,
         );
