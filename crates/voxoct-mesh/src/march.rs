@@ -942,7 +942,7 @@ fn place_vertices(
                             };
                             let t = edge_crossing(bricks, placement, inside, i, o, len);
                             if backs_wanted && o.0 == f32::INFINITY {
-                                back = back_plane(bricks, inside, floor, i.1, o.1, t);
+                                back = back_plane(bricks, inside, floor, i, o.1, t);
                             }
                             if from_p { t } else { 1.0 - t }
                         };
@@ -980,11 +980,16 @@ fn place_vertices(
 /// object's base (the floor-layer cell under `o` is inside: a cavity's floor), the base's
 /// plane half a cell below the floor layer's centres, where the vertices into the layer
 /// below are put. Edges into the layers below the floor are the base itself: `None`.
+///
+/// Most such edges are fronts, the surface seen from `o`'s side, and are told apart before
+/// the fit (27 cells) by one more: `i` is marked and the cell beyond it on the same line is
+/// inside and no nearer the surface (an inside cell no triangle marked, or a marked one at
+/// most as far in front), so the surface lies between `i` and `o`.
 fn back_plane(
     bricks: &Bricks,
     inside: Inside,
     floor: Option<i64>,
-    i: [i64; 3],
+    (fi, i): (f32, [i64; 3]),
     o: [i64; 3],
     t: f32,
 ) -> Option<(DVec3, f64)> {
@@ -992,6 +997,12 @@ fn back_plane(
         return None;
     }
     let value = |g| bricks.value_at(g);
+    if observed(fi) {
+        let fr = value([0, 1, 2].map(|k| 2 * i[k] - o[k]));
+        if fr == f32::NEG_INFINITY || (observed(fr) && fr <= fi) {
+            return None;
+        }
+    }
     backs::observed_plane(value, observed, i, o, t).or_else(|| {
         let f = floor?;
         let over_base = i[1] == f && o[1] > f && inside.test(value([o[0], f, o[2]]));
