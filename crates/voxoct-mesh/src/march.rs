@@ -233,6 +233,19 @@ impl Bricks {
         slot_in(&self.map, &self.block, g).map_or(f32::INFINITY, |i| self.vals[i])
     }
 
+    /// Value of the cell at global (shifted) coordinates `g`, near brick `b` whose first
+    /// cell is `base`: [`Self::value`] where `g` is within the brick's padded reach (no
+    /// hash lookup), else [`Self::value_at`]; the same value either way.
+    #[inline]
+    fn value_near(&self, b: usize, base: [u32; 3], g: [i64; 3]) -> f32 {
+        let p = [0, 1, 2].map(|k| g[k] - i64::from(base[k]));
+        if p.iter().all(|c| (0..=8).contains(c)) {
+            self.value(b, p.map(|c| c as u32))
+        } else {
+            self.value_at(g)
+        }
+    }
+
     /// Value of the cell at padded local coordinates `p` (0..=8) of brick `b`.
     #[inline]
     fn value(&self, b: usize, p: [u32; 3]) -> f32 {
@@ -940,9 +953,10 @@ fn place_vertices(
                             } else {
                                 (end(q, fq), end(p, fp))
                             };
-                            let t = edge_crossing(bricks, placement, inside, i, o, len);
+                            let value = |g| bricks.value_near(b, base, g);
+                            let t = edge_crossing(value, placement, inside, i, o, len);
                             if backs_wanted && o.0 == f32::INFINITY {
-                                back = back_plane(bricks, inside, floor, i, o.1, t);
+                                back = back_plane(value, inside, floor, i, o.1, t);
                             }
                             if from_p { t } else { 1.0 - t }
                         };
@@ -985,8 +999,10 @@ fn place_vertices(
 /// the fit (27 cells) by one more: `i` is marked and the cell beyond it on the same line is
 /// inside and no nearer the surface (an inside cell no triangle marked, or a marked one at
 /// most as far in front), so the surface lies between `i` and `o`.
+///
+/// `value`: the cells' values by global coordinates.
 fn back_plane(
-    bricks: &Bricks,
+    value: impl Fn([i64; 3]) -> f32 + Copy,
     inside: Inside,
     floor: Option<i64>,
     (fi, i): (f32, [i64; 3]),
@@ -996,7 +1012,6 @@ fn back_plane(
     if floor.is_some_and(|f| o[1] < f) {
         return None;
     }
-    let value = |g| bricks.value_at(g);
     if observed(fi) {
         let fr = value([0, 1, 2].map(|k| 2 * i[k] - o[k]));
         if fr == f32::NEG_INFINITY || (observed(fr) && fr <= fi) {
@@ -1034,8 +1049,9 @@ const BACK_STEP_CELLS: f32 = 0.5;
 /// farther): a wall of half a cell where the grid allows it, as close to the seen surface as
 /// the closure's prior (unseen surface next to seen surface) asks. Where it does not,
 /// [`crate::backs`] moves the finished mesh's vertex there ([`back_plane`] records how).
+/// `value`: the cells' values by global coordinates.
 fn edge_crossing(
-    bricks: &Bricks,
+    value: impl Fn([i64; 3]) -> f32,
     placement: Placement,
     inside: Inside,
     (fi, gi): (f32, [i64; 3]),
@@ -1043,7 +1059,7 @@ fn edge_crossing(
     len: f32,
 ) -> f32 {
     if inside == Inside::NonPositive && observed(fi) && fo == f32::INFINITY {
-        let fr = bricks.value_at([0, 1, 2].map(|k| 2 * gi[k] - go[k]));
+        let fr = value([0, 1, 2].map(|k| 2 * gi[k] - go[k]));
         if observed(fr) && fr > fi + BACK_STEP_CELLS {
             return ((UNSEEN_BACK_CELLS + fi) / len).clamp(T_MIN, 1.0 - T_MIN);
         }
