@@ -106,41 +106,37 @@ pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>, keep_tris: bool) -> Plan {
     let nv = mesh.vertices.len();
     let (region_of, keys) = assign(mesh, grid);
     let count = keys.len();
-    // The region of each vertex's triangles, or MIXED.
-    let mut pure = vec![UNUSED; nv];
-    for (t, &r) in mesh.triangles.iter().zip(&region_of) {
-        for &k in t {
-            let p = &mut pure[k as usize];
-            if *p == UNUSED {
-                *p = r;
-            } else if *p != r {
-                *p = MIXED;
+    let pure = pure_regions(nv, &mesh.triangles, &region_of);
+    // Movable: every triangle around it has three vertices of its own region only. Each
+    // region's own triangles, in mesh order, and its pure vertices, in index order
+    // (counting sorts by region). Two independent halves, side by side.
+    let ((movable, order), (pure_order, local_of)) = par::join(
+        || {
+            let mut movable: Vec<bool> = pure.iter().map(|&p| p < UNUSED).collect();
+            for t in &mesh.triangles {
+                let p = t.map(|k| pure[k as usize]);
+                if !(p[0] == p[1] && p[1] == p[2] && p[0] < UNUSED) {
+                    for &k in t {
+                        movable[k as usize] = false;
+                    }
+                }
             }
-        }
-    }
-    // Movable: every triangle around it has three vertices of its own region only.
-    let mut movable: Vec<bool> = pure.iter().map(|&p| p < UNUSED).collect();
-    for t in &mesh.triangles {
-        let p = t.map(|k| pure[k as usize]);
-        if !(p[0] == p[1] && p[1] == p[2] && p[0] < UNUSED) {
-            for &k in t {
-                movable[k as usize] = false;
+            (movable, by_region(&region_of, count))
+        },
+        || {
+            let pure_order = by_region(&pure, count);
+            let mut local_of = vec![0u32; nv];
+            for r in 0..count {
+                for (i, &v) in pure_order.1[pure_order.0[r]..pure_order.0[r + 1]]
+                    .iter()
+                    .enumerate()
+                {
+                    local_of[v as usize] = i as u32;
+                }
             }
-        }
-    }
-    // Each region's own triangles, in mesh order, and its pure vertices, in index order
-    // (counting sorts by region).
-    let order = by_region(&region_of, count);
-    let pure_order = by_region(&pure, count);
-    let mut local_of = vec![0u32; nv];
-    for r in 0..count {
-        for (i, &v) in pure_order.1[pure_order.0[r]..pure_order.0[r + 1]]
-            .iter()
-            .enumerate()
-        {
-            local_of[v as usize] = i as u32;
-        }
-    }
+            (pure_order, local_of)
+        },
+    );
     // The fans of the vertices shared by regions (complete: every triangle around such a
     // vertex is kept), to find the halos; the other triangles are left out.
     let mixed = |t: [u32; 3]| t.iter().any(|&k| pure[k as usize] == MIXED);
@@ -205,6 +201,37 @@ pub(super) fn plan(mesh: &Mesh, grid: Option<&Grid>, keep_tris: bool) -> Plan {
         regions,
         local_of,
     }
+}
+
+/// The region of each vertex's triangles (`region_of`), `MIXED` where they are of more
+/// than one, `UNUSED` where it has none: the two halves of the triangles at once, their
+/// verdicts merged (the same whatever the order).
+fn pure_regions(nv: usize, triangles: &[[u32; 3]], region_of: &[u32]) -> Vec<u32> {
+    let merge = |p: u32, r: u32| {
+        if p == UNUSED || p == r {
+            r
+        } else if r == UNUSED {
+            p
+        } else {
+            MIXED
+        }
+    };
+    let scan = |range: std::ops::Range<usize>| {
+        let mut pure = vec![UNUSED; nv];
+        for (t, &r) in triangles[range.clone()].iter().zip(&region_of[range]) {
+            for &k in t {
+                let p = &mut pure[k as usize];
+                *p = merge(*p, r);
+            }
+        }
+        pure
+    };
+    let half = triangles.len() / 2;
+    let (mut pure, second) = par::join(|| scan(0..half), || scan(half..triangles.len()));
+    for (p, &q) in pure.iter_mut().zip(&second) {
+        *p = merge(*p, q);
+    }
+    pure
 }
 
 /// The items of each group `0..count` (`group[i]`; larger values belong to none), in index
