@@ -255,3 +255,22 @@ impl Cell {
         }
     }
 }
+
+/// Area-weighted unit vertex normals of an outward-wound mesh (zero for a vertex whose
+/// triangles are all degenerate or that no triangle uses). Indices must be in range.
+#[must_use]
+pub fn vertex_normals(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut n = vec![Vec3::ZERO; vertices.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| vertices[i as usize]);
+        // The cross product's length is twice the area: area weighting for free.
+        let f = (b - a).cross(c - a);
+        for &i in t {
+            n[i as usize] += f;
+        }
+    }
+    for v in &mut n {
+        *v = v.normalize_or_zero();
+    }
+    n
+}

@@ -121,6 +121,8 @@ mod intersection_test_aabb_triangle;
 mod octree;
 
 pub use error::OctreeError;
-pub use geometry::{Aabb, Cell, GridSpec, HALF_CELL_DIAGONAL, Real, Seen, Triangle};
+pub use geometry::{
+    Aabb, Cell, GridSpec, HALF_CELL_DIAGONAL, Real, Seen, Triangle, vertex_normals,
+};
 pub use intersection_test_aabb_triangle::intersection_test_aabb_triangle;
 pub use octree::{MAX_DEPTH, Octree};

@@ -28,6 +28,7 @@
 use std::collections::HashMap;
 
 use voxoct_core::glam::{DMat4, DVec3, DVec4, Vec3};
+use voxoct_core::vertex_normals;
 
 use crate::mesh::Mesh;
 use crate::{par, selfx};
@@ -136,8 +137,8 @@ fn key(p: Vec3, inv_cell: f32) -> [i32; 3] {
 
 /// Moves the vertices of `mesh` on the back of an unseen wall to [`BACK_DEPTH_CELLS`]
 /// behind the seen surface (see the module docs): a vertex takes the plane of the
-/// nearest recorded back within [`REACH_CELLS`] whose normal its own (area-weighted)
-/// normal opposes; it moves when it lies deeper than that, by at most
+/// nearest recorded back within [`REACH_CELLS`] whose normal its own
+/// ([`vertex_normals`]) opposes; it moves when it lies deeper than that, by at most
 /// [`MAX_MOVE_CELLS`]. Any triangle this makes improper is mended by the untangling
 /// (vertices back toward their unmoved positions). Returns `None` when nothing moved (the
 /// mesh is as it was), else whether the result is proven free of self-intersections
@@ -151,14 +152,7 @@ pub(crate) fn thin(mesh: &mut Mesh, backs: &[Back], cell: f32) -> Option<bool> {
     for (k, b) in backs.iter().enumerate() {
         buckets.entry(key(b.at, inv)).or_default().push(k as u32);
     }
-    let mut normals = vec![Vec3::ZERO; mesh.vertices.len()];
-    for t in &mesh.triangles {
-        let [a, b, c] = t.map(|k| mesh.vertices[k as usize]);
-        let n = (b - a).cross(c - a);
-        for k in t {
-            normals[*k as usize] += n;
-        }
-    }
+    let normals = vertex_normals(&mesh.vertices, &mesh.triangles);
     let reach2 = (REACH_CELLS * cell).powi(2);
     let mut moved = mesh.vertices.clone();
     par::fill(&mut moved, |v| {
@@ -237,6 +231,14 @@ mod tests {
         ys.partition(|&y| y < split)
     }
 
+    /// Asserts that there are heights `ys` and that each is within 0.05 cell of `want`.
+    fn all_at(ys: &[f32], want: f32, what: &str) {
+        assert!(!ys.is_empty(), "no {what} vertex");
+        for y in ys {
+            assert!((y - want).abs() < 0.05, "{what} at {y}, not {want}");
+        }
+    }
+
     /// A plate seen from above only, its surface at y = 10.3 (cells): the readings marked
     /// the layers 9 to 11 with the distances a noisy field holds (half a cell per cell). The
     /// seen top stays where it was measured; the back, which the edges put past the deepest
@@ -259,13 +261,8 @@ mod tests {
         mesh.check_valid_solid().unwrap();
         assert!(certified);
         let (back, top) = heights(&mesh, 10.0);
-        assert!(!back.is_empty() && !top.is_empty());
-        for y in top {
-            assert!((y - 10.3).abs() < 0.05, "top at {y}");
-        }
-        for y in back {
-            assert!((y - 9.8).abs() < 0.05, "back at {y}");
-        }
+        all_at(&top, 10.3, "top");
+        all_at(&back, 9.8, "back");
     }
 
     /// A cup's floor that no view saw, the floor layer (5) filled by a closure, under space
@@ -283,13 +280,8 @@ mod tests {
         let mesh = mesh_cells(&cells, &GRID, &opts).unwrap();
         mesh.check_valid_solid().unwrap();
         let (base, top) = heights(&mesh, 4.8);
-        assert!(!base.is_empty() && !top.is_empty());
-        for y in base {
-            assert!((y - 4.5).abs() < 0.05, "base at {y}");
-        }
-        for y in top {
-            assert!((y - 5.0).abs() < 0.05, "top at {y}");
-        }
+        all_at(&base, 4.5, "base");
+        all_at(&top, 5.0, "top");
     }
 
     /// Values of a plane seen from +y, as the noisy field reads them: `slope` cells per cell

@@ -85,9 +85,9 @@ fn check_arguments(grid: &GridSpec, opts: &MeshOptions) -> Result<(), MeshError>
 /// Validates the grid and the cells; returns the marked cells as `(coord, value)` with the
 /// value in cells (mean signed distance / cell edge; `-inf` kept, a solid cell without an
 /// observed surface such as the closure adds, `closure::CLOSED_SDF`; 0 when NaN or `+inf`),
-/// the inside rule and the floor layer, if any (cells below it are dropped). Owned cells are given back part by part as they are converted,
-/// before the fill (they and their conversion are the two largest arrays of a solid's
-/// meshing, and are never both whole).
+/// the inside rule and the floor layer, if any (cells below it are dropped). Owned cells
+/// are given back part by part as they are converted, before the fill (they and their
+/// conversion are the two largest arrays of a solid's meshing, and are never both whole).
 pub(crate) fn prepare(
     cells: Cow<'_, [Cell]>,
     grid: &GridSpec,

@@ -954,9 +954,15 @@ fn place_vertices(
                                 (end(q, fq), end(p, fp))
                             };
                             let value = |g| bricks.value_near(b, base, g);
-                            let t = edge_crossing(value, placement, inside, i, o, len);
+                            // The cell beyond the inside end on the edge's line, where `i` is
+                            // marked and `o` absent: read once for both tests of a back.
+                            let beyond = (inside == Inside::NonPositive
+                                && observed(i.0)
+                                && o.0 == f32::INFINITY)
+                                .then(|| (i.0, value([0, 1, 2].map(|k| 2 * i.1[k] - o.1[k]))));
+                            let t = edge_crossing(placement, i.0, o.0, beyond, len);
                             if backs_wanted && o.0 == f32::INFINITY {
-                                back = back_plane(value, inside, floor, i, o.1, t);
+                                back = back_plane(value, inside, floor, (i.1, o.1), beyond, t);
                             }
                             if from_p { t } else { 1.0 - t }
                         };
@@ -1000,23 +1006,23 @@ fn place_vertices(
 /// inside and no nearer the surface (an inside cell no triangle marked, or a marked one at
 /// most as far in front), so the surface lies between `i` and `o`.
 ///
-/// `value`: the cells' values by global coordinates.
+/// `value`: the cells' values by global coordinates; `beyond`: `i`'s value and that of the
+/// cell beyond it on the edge's line where `i` is marked, as [`edge_crossing`] takes them.
 fn back_plane(
     value: impl Fn([i64; 3]) -> f32 + Copy,
     inside: Inside,
     floor: Option<i64>,
-    (fi, i): (f32, [i64; 3]),
-    o: [i64; 3],
+    (i, o): ([i64; 3], [i64; 3]),
+    beyond: Option<(f32, f32)>,
     t: f32,
 ) -> Option<(DVec3, f64)> {
     if floor.is_some_and(|f| o[1] < f) {
         return None;
     }
-    if observed(fi) {
-        let fr = value([0, 1, 2].map(|k| 2 * i[k] - o[k]));
-        if fr == f32::NEG_INFINITY || (observed(fr) && fr <= fi) {
-            return None;
-        }
+    if let Some((fi, fr)) = beyond
+        && (fr == f32::NEG_INFINITY || (observed(fr) && fr <= fi))
+    {
+        return None;
     }
     backs::observed_plane(value, observed, i, o, t).or_else(|| {
         let f = floor?;
@@ -1035,7 +1041,7 @@ const UNSEEN_BACK_CELLS: f32 = 0.5;
 const BACK_STEP_CELLS: f32 = 0.5;
 
 /// Where the surface crosses the edge from the inside cell `i` to the outside cell `o`
-/// (values and global coordinates), as a fraction from `i`: [`crossing`], except across the
+/// (values `fi`, `fo`), as a fraction from `i`: [`crossing`], except across the
 /// back of an observed wall. There `i` is marked (its value is its distance behind the
 /// observed surface), `o` is absent (no reading came near it) and the cell `r` beyond `i`
 /// on the same line is marked and at least half a cell nearer that surface (or outside
@@ -1049,20 +1055,20 @@ const BACK_STEP_CELLS: f32 = 0.5;
 /// farther): a wall of half a cell where the grid allows it, as close to the seen surface as
 /// the closure's prior (unseen surface next to seen surface) asks. Where it does not,
 /// [`crate::backs`] moves the finished mesh's vertex there ([`back_plane`] records how).
-/// `value`: the cells' values by global coordinates.
+/// `beyond`: `i`'s value and that of `r`, the cell beyond it, given exactly where the test
+/// applies (solid signed-distance mode, `i` marked, `o` absent).
 fn edge_crossing(
-    value: impl Fn([i64; 3]) -> f32,
     placement: Placement,
-    inside: Inside,
-    (fi, gi): (f32, [i64; 3]),
-    (fo, go): (f32, [i64; 3]),
+    fi: f32,
+    fo: f32,
+    beyond: Option<(f32, f32)>,
     len: f32,
 ) -> f32 {
-    if inside == Inside::NonPositive && observed(fi) && fo == f32::INFINITY {
-        let fr = value([0, 1, 2].map(|k| 2 * gi[k] - go[k]));
-        if observed(fr) && fr > fi + BACK_STEP_CELLS {
-            return ((UNSEEN_BACK_CELLS + fi) / len).clamp(T_MIN, 1.0 - T_MIN);
-        }
+    if let Some((_, fr)) = beyond
+        && observed(fr)
+        && fr > fi + BACK_STEP_CELLS
+    {
+        return ((UNSEEN_BACK_CELLS + fi) / len).clamp(T_MIN, 1.0 - T_MIN);
     }
     crossing(placement, fi, fo, len)
 }

@@ -64,9 +64,11 @@ pub use error::StlError;
 pub use format::UpAxis;
 pub use format::{
     MAX_ELEMENTS, MeshFormat, MeshRef, ReadMesh, WriteOptions, read_mesh, read_mesh_file,
-    vertex_normals, write_mesh, write_mesh_file,
+    write_mesh, write_mesh_file,
 };
 pub use read::{MAX_FILE_BYTES, check_mesh_file, parse, read, read_file, scale_triangles, weld};
+/// Area-weighted unit vertex normals (in `voxoct_core`, where the mesher uses them too).
+pub use voxoct_core::vertex_normals;
 pub use write::{
     BINARY_HEADER_BYTES, BINARY_TRIANGLE_BYTES, StlFormat, write, write_ascii, write_binary,
     write_file,

@@ -5,7 +5,8 @@ use std::io::{BufWriter, Write};
 use voxoct_core::glam::Vec3;
 
 use crate::StlError;
-use crate::format::{push_u64, vertex_normals};
+use crate::format::push_u64;
+use voxoct_core::vertex_normals;
 
 /// Writes an indexed mesh as OBJ: one `v` and one `vn` (area-weighted vertex normal) per
 /// vertex, one `f a//a b//b c//c` per triangle (1-based, counter-clockwise seen from

@@ -7,7 +7,8 @@ use byteorder::{BigEndian, ByteOrder, LittleEndian};
 use voxoct_core::glam::Vec3;
 
 use crate::StlError;
-use crate::format::{MAX_ELEMENTS, MeshRef, ReadMesh, vertex_normals};
+use crate::format::{MAX_ELEMENTS, MeshRef, ReadMesh};
+use voxoct_core::vertex_normals;
 
 /// Vertices or faces encoded per `write_all` call.
 const CHUNK: usize = 4096;
