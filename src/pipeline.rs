@@ -27,7 +27,7 @@ use crate::par;
 
 use voxoct_depth::carve::{CarveView, settle_disagreements, visibility};
 use voxoct_mesh::closure::{
-    CLOSED_HITS, CLOSED_SDF, ClosedSurface, Platform, close_cells, closure_box,
+    CLOSED_HITS, CLOSED_SDF, ClosedSurface, Platform, close_cells_seeing, closure_box,
 };
 
 /// The frames of one snapshot and the turntable angle they were taken at.
@@ -785,17 +785,16 @@ fn close_unseen(
     let centre = (grid.cell_center(lo) + grid.cell_center(hi)) * 0.5;
     let distance = centre.distance(camera);
     let margin = 2.0 * kinect_v1_sigma(distance) + HALF_CELL_DIAGONAL * grid.cell;
-    let seen = visibility(views, grid, lo, hi, margin);
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.
-    close_cells(
+    close_cells_seeing(
         cells,
         (lo, hi),
         platform,
         min_hits,
         margin / grid.cell,
         grid.cell,
-        &seen,
+        || visibility(views, grid, lo, hi, margin),
     )
 }
 
