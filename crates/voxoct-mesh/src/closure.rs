@@ -832,6 +832,12 @@ struct Graph {
     orphans: VecDeque<u32>,
 }
 
+/// Words of [`Graph::new`]'s node bits whose cells one parallel task lists.
+const WORDS_PER_TASK: usize = 1 << 12;
+
+/// Nodes whose edges one parallel task of [`Graph::new`] sets up.
+const NODES_PER_TASK: usize = 1 << 14;
+
 /// The direction opposite to `d` (directions are -x, +x, -y, +y, -z, +z).
 #[inline]
 fn opp(d: usize) -> usize {
@@ -868,62 +874,82 @@ impl Graph {
 
     fn new(dims: [usize; 3], known: &[Known], cost: &[u8]) -> Self {
         let [nx, ny, nz] = dims;
-        let mut is_node = vec![0u64; known.len().div_ceil(64)];
-        let mut cell = Vec::new();
-        for (i, k) in known.iter().enumerate() {
-            if *k == Known::Unknown {
-                is_node[i / 64] |= 1 << (i % 64);
-                cell.push(i as u32);
-            }
-        }
+        // The unknown cells' bits, then their list, a word (64 cells) at a time in parallel.
+        let mut is_node = Vec::new();
+        par::map_into(&mut is_node, known.len().div_ceil(64), |w| {
+            let cells = &known[w * 64..((w + 1) * 64).min(known.len())];
+            cells
+                .iter()
+                .enumerate()
+                .filter(|(_, k)| **k == Known::Unknown)
+                .fold(0u64, |bits, (b, _)| bits | 1 << b)
+        });
         let mut rank = Vec::with_capacity(is_node.len());
         let mut acc = 0u32;
         for w in &is_node {
             rank.push(acc);
             acc += w.count_ones();
         }
+        let mut cell = Vec::with_capacity(acc as usize);
+        par::extend_in_order(&mut cell, is_node.len(), WORDS_PER_TASK, |w, out| {
+            let mut bits = is_node[w];
+            while bits != 0 {
+                out.push((w * 64) as u32 + bits.trailing_zeros());
+                bits &= bits - 1;
+            }
+        });
         let node = |i: usize| {
             let w = is_node[i / 64];
             rank[i / 64] + (w & ((1u64 << (i % 64)) - 1)).count_ones()
         };
+        // Each node's neighbours, capacities and terminal capacity, in parallel by runs of
+        // nodes (each node's own).
         let n = cell.len();
         let mut nbr = vec![[u32::MAX; 6]; n];
         let mut res = vec![[0u8; 6]; n];
         let mut tr = vec![0i16; n];
-        for (v, &c) in cell.iter().enumerate() {
-            let c = c as usize;
-            let (x, y, z) = (c % nx, (c / nx) % ny, c / (nx * ny));
-            let neighbours = [
-                (x > 0).then(|| c - 1),
-                (x + 1 < nx).then(|| c + 1),
-                (y > 0).then(|| c - nx),
-                (y + 1 < ny).then(|| c + nx),
-                (z > 0).then(|| c - nx * ny),
-                (z + 1 < nz).then(|| c + nx * ny),
-            ];
-            let own = cost[c].clamp(1, MAX_FACE_COST);
-            let mut t = 0i16;
-            for (d, q) in neighbours.into_iter().enumerate() {
-                match q.map(|q| (q, known[q])) {
-                    // The bottom border is the platform.
-                    None if d == 2 => t += i16::from(own.min(UNIT_FACE_COST)),
-                    None => t += i16::from(own),
-                    Some((_, Known::Excluded)) => {}
-                    Some((q, k)) => {
-                        let w = own.min(cost[q].max(1));
-                        match k {
-                            Known::Empty => t += i16::from(w),
-                            Known::Solid => t -= i16::from(w),
-                            _ => {
-                                nbr[v][d] = node(q);
-                                res[v][d] = w;
+        par::for_each_zip(
+            nbr.chunks_mut(NODES_PER_TASK),
+            res.chunks_mut(NODES_PER_TASK)
+                .zip(tr.chunks_mut(NODES_PER_TASK)),
+            |k, nbr, (res, tr)| {
+                let cells = &cell[k * NODES_PER_TASK..];
+                for (((nbr, res), tr), &c) in nbr.iter_mut().zip(res).zip(tr).zip(cells) {
+                    let c = c as usize;
+                    let (x, y, z) = (c % nx, (c / nx) % ny, c / (nx * ny));
+                    let neighbours = [
+                        (x > 0).then(|| c - 1),
+                        (x + 1 < nx).then(|| c + 1),
+                        (y > 0).then(|| c - nx),
+                        (y + 1 < ny).then(|| c + nx),
+                        (z > 0).then(|| c - nx * ny),
+                        (z + 1 < nz).then(|| c + nx * ny),
+                    ];
+                    let own = cost[c].clamp(1, MAX_FACE_COST);
+                    let mut t = 0i16;
+                    for (d, q) in neighbours.into_iter().enumerate() {
+                        match q.map(|q| (q, known[q])) {
+                            // The bottom border is the platform.
+                            None if d == 2 => t += i16::from(own.min(UNIT_FACE_COST)),
+                            None => t += i16::from(own),
+                            Some((_, Known::Excluded)) => {}
+                            Some((q, k)) => {
+                                let w = own.min(cost[q].max(1));
+                                match k {
+                                    Known::Empty => t += i16::from(w),
+                                    Known::Solid => t -= i16::from(w),
+                                    _ => {
+                                        nbr[d] = node(q);
+                                        res[d] = w;
+                                    }
+                                }
                             }
                         }
                     }
+                    *tr = t;
                 }
-            }
-            tr[v] = t;
-        }
+            },
+        );
         Self {
             cell,
             is_node,
