@@ -381,10 +381,6 @@ impl Field<'_> {
     fn slot(&self, g: [i64; 3]) -> Option<usize> {
         slot_in(self.map, self.block, g)
     }
-
-    fn get(&self, g: [i64; 3]) -> f32 {
-        self.slot(g).map_or(f32::INFINITY, |i| self.vals[i])
-    }
 }
 
 /// Most rounds of [`diagonal_leaks`] and filling: a round's fills close the face paths of a
@@ -596,45 +592,60 @@ fn peel_unobserved(field: &mut Field<'_>, keys: &[[u32; 3]], floor: u32, min_pie
         })
         .collect();
     let inside = |f: f32| f <= 0.0;
-    let mut big = std::collections::HashSet::new();
-    let mut piece = Vec::new();
-    let mut member = std::collections::HashSet::new();
+    // Flags by slot: the cells of pieces known to be large, and those of the piece being
+    // searched (cleared after each search). Every inside cell has a slot, and no slot
+    // changes here.
+    let words = field.vals.len().div_ceil(64);
+    let (mut big, mut member) = (vec![0u64; words], vec![0u64; words]);
+    let test = |bits: &[u64], i: usize| bits[i / 64] >> (i % 64) & 1 == 1;
+    let set = |bits: &mut [u64], i: usize| bits[i / 64] |= 1 << (i % 64);
+    // The piece's cells and their slots.
+    let mut piece: Vec<([i64; 3], usize)> = Vec::new();
     for g in peeled {
         for d in &kuhn {
             let start = [g[0] + d[0], g[1] + d[1], g[2] + d[2]];
-            if !inside(field.get(start)) || big.contains(&start) {
+            let Some(s) = field.slot(start).filter(|&i| inside(field.vals[i])) else {
+                continue;
+            };
+            if test(&big, s) {
                 continue;
             }
             // The inside piece from `start`, searched until it reaches `min_piece` cells or a
             // piece already known to be that large.
             piece.clear();
-            member.clear();
-            piece.push(start);
-            member.insert(start);
+            piece.push((start, s));
+            set(&mut member, s);
             let mut next = 0;
             let mut joined = false;
             'search: while next < piece.len() && piece.len() < min_piece {
-                let c = piece[next];
+                let c = piece[next].0;
                 next += 1;
                 for d in &kuhn {
                     let n = [c[0] + d[0], c[1] + d[1], c[2] + d[2]];
-                    if big.contains(&n) {
+                    let Some(i) = field.slot(n) else {
+                        continue;
+                    };
+                    if test(&big, i) {
                         joined = true;
                         break 'search;
                     }
-                    if inside(field.get(n)) && member.insert(n) {
-                        piece.push(n);
+                    if inside(field.vals[i]) && !test(&member, i) {
+                        set(&mut member, i);
+                        piece.push((n, i));
                     }
                 }
             }
+            for &(_, i) in &piece {
+                member[i / 64] &= !(1 << (i % 64));
+            }
             if joined || piece.len() >= min_piece {
-                big.extend(piece.iter().copied());
+                for &(_, i) in &piece {
+                    set(&mut big, i);
+                }
                 continue;
             }
-            for &c in &piece {
-                if let Some(i) = field.slot(c) {
-                    field.vals[i] = f32::INFINITY;
-                }
+            for &(_, i) in &piece {
+                field.vals[i] = f32::INFINITY;
             }
         }
     }
