@@ -14,6 +14,7 @@ use crate::bitbox::{BitBox, Flood, remove_small_groups};
 use crate::march::Inside;
 use crate::mesh::Dsu;
 use crate::options::{Floor, MeshError, MeshOptions, Placement};
+use crate::par;
 use crate::tables::corner_offset;
 
 mod tiled;
@@ -95,14 +96,10 @@ pub(crate) fn prepare(
     out: &mut Vec<(UVec3, f32)>,
 ) -> Result<(Inside, Option<u32>), MeshError> {
     check_arguments(grid, opts)?;
-    if let Some((index, c)) = cells
-        .iter()
-        .enumerate()
-        .find(|(_, c)| c.coord.max_element() >= grid.resolution)
-    {
+    if let Some(index) = par::position_first(&cells, |c| c.coord.max_element() >= grid.resolution) {
         return Err(MeshError::CellOutsideGrid {
             index,
-            coord: c.coord,
+            coord: cells[index].coord,
             resolution: grid.resolution,
         });
     }
@@ -117,26 +114,28 @@ pub(crate) fn prepare(
         };
         (c.coord, v)
     };
+    let counted = |c: &Cell| c.hits >= min_hits;
     out.clear();
-    out.reserve_exact(cells.iter().filter(|c| c.hits >= min_hits).count());
+    out.reserve_exact(par::count(&cells, counted));
     match cells {
         Cow::Borrowed(cells) => {
-            out.extend(cells.iter().filter(|c| c.hits >= min_hits).map(entry));
+            out.extend(cells.iter().filter(|c| counted(c)).map(entry));
         }
         Cow::Owned(mut cells) => {
             // From the back, an eighth of what is left at a time, each part's memory given
             // back before the next is converted: the cells (20 bytes) and their conversion
             // (16 bytes) are never both whole (a solid's interior, at fine leaves the
-            // largest arrays of the meshing). Reversed at the end: the order is kept.
+            // largest arrays of the meshing). Reversed at the end: the order is kept. A
+            // part whose cells are all counted (the closure's interior) is converted in
+            // parallel, each entry written in its place.
             while !cells.is_empty() {
                 let from = cells.len() - cells.len().div_ceil(8);
-                out.extend(
-                    cells[from..]
-                        .iter()
-                        .rev()
-                        .filter(|c| c.hits >= min_hits)
-                        .map(entry),
-                );
+                let part = &cells[from..];
+                if par::all(part.len(), |i| counted(&part[i])) {
+                    par::extend_map_rev(out, part, entry);
+                } else {
+                    out.extend(part.iter().rev().filter(|c| counted(c)).map(entry));
+                }
                 cells.truncate(from);
                 cells.shrink_to_fit();
             }

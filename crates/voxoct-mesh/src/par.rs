@@ -139,6 +139,31 @@ pub(crate) fn map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync) -> 
     out
 }
 
+/// How many items `f` accepts.
+pub(crate) fn count<T: Sync>(items: &[T], f: impl Fn(&T) -> bool + Sync) -> usize {
+    #[cfg(feature = "parallel")]
+    {
+        items.par_iter().with_min_len(1024).filter(|x| f(x)).count()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        items.iter().filter(|x| f(x)).count()
+    }
+}
+
+/// Appends `f(x)` for every `x` of `src`, last to first (in parallel, each written in its
+/// place in `dst`).
+pub(crate) fn extend_map_rev<T: Sync, U: Send>(
+    dst: &mut Vec<U>,
+    src: &[T],
+    f: impl Fn(&T) -> U + Sync + Send,
+) {
+    #[cfg(feature = "parallel")]
+    dst.par_extend(src.par_iter().with_min_len(1024).rev().map(f));
+    #[cfg(not(feature = "parallel"))]
+    dst.extend(src.iter().rev().map(f));
+}
+
 /// `(a(), b())`, the two at once with the `parallel` feature.
 pub(crate) fn join<A: Send, B: Send>(
     a: impl FnOnce() -> A + Send,
