@@ -27,7 +27,7 @@ use crate::par;
 
 use voxoct_depth::carve::{CarveView, settle_disagreements, visibility};
 use voxoct_mesh::closure::{
-    CLOSED_HITS, CLOSED_SDF, ClosedSurface, Platform, close_cells_seeing, closure_box,
+    CLOSED_HITS, CLOSED_SDF, ClosedSurface, Platform, close_cells, closure_box,
 };
 
 /// The frames of one snapshot and the turntable angle they were taken at.
@@ -787,7 +787,7 @@ fn close_unseen(
     let margin = 2.0 * kinect_v1_sigma(distance) + HALF_CELL_DIAGONAL * grid.cell;
     // The distance at which invented surface costs twice as much as surface next to an
     // observation: one margin.
-    close_cells_seeing(
+    close_cells(
         cells,
         (lo, hi),
         platform,

@@ -86,8 +86,8 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 ///
 /// In the box, a marked cell with at least `min_hits` hits is solid when its mean signed
 /// distance is not positive, and empty otherwise (its centre is outside the seen surface); an
-/// unmarked cell is empty when the views saw it so (`seen`: their verdict on every cell of
-/// the box, x fastest, as `voxoct_depth::carve::visibility` gives it), and unknown
+/// unmarked cell is empty when the views saw it so (`seen` gives their verdict on every cell
+/// of the box, x fastest, as `voxoct_depth::carve::visibility` does), and unknown
 /// otherwise.
 /// Cells below the platform's layer (`platform.floor`) are excluded, and the box's faces
 /// border empty space. A face of the cut costs `1 + d / prior_cells`
@@ -113,39 +113,16 @@ pub fn closure_box(cells: &[Cell], grid: &GridSpec, floor: u32) -> Option<(UVec3
 /// cells the cut added, the base on the platform. This is what the closure invented; it is
 /// counted on the cells, before marching.
 ///
-/// # Panics
-/// If `seen` does not hold one verdict for every cell of the box.
-#[must_use]
-pub fn close_cells(
-    cells: Vec<Cell>,
-    (lo, hi): (UVec3, UVec3),
-    platform: Platform,
-    min_hits: u32,
-    prior_cells: f32,
-    cell: f32,
-    seen: &[Seen],
-) -> (Vec<Cell>, ClosedSurface) {
-    close_cells_seeing(
-        cells,
-        (lo, hi),
-        platform,
-        min_hits,
-        prior_cells,
-        cell,
-        || seen,
-    )
-}
-
-/// [`close_cells`] with the views' verdicts computed by `seen` (`voxoct_depth::carve::visibility`,
-/// say) while the faces' prices, which need only the marked cells, are computed beside
-/// it: the distance transform behind the prices runs on one thread, so alongside a
-/// parallel computation of the verdicts it takes the time that was left idle (the bunny at
-/// 0.5 mm: its 0.24 s, which took as long as the verdicts).
+/// `seen` computes the views' verdicts (`voxoct_depth::carve::visibility`, say; a slice
+/// already at hand is `|| verdicts`). The faces' prices need only the marked cells and are
+/// computed beside it: their distance transform runs on one thread, so alongside a
+/// parallel computation of the verdicts it takes time that would otherwise be left idle
+/// (the bunny at 0.5 mm: 0.24 s, as long as the verdicts).
 ///
 /// # Panics
 /// If `seen` does not give one verdict for every cell of the box.
 #[must_use]
-pub fn close_cells_seeing<S>(
+pub fn close_cells<S>(
     cells: Vec<Cell>,
     (lo, hi): (UVec3, UVec3),
     platform: Platform,
@@ -155,7 +132,7 @@ pub fn close_cells_seeing<S>(
     seen: impl FnOnce() -> S + Send,
 ) -> (Vec<Cell>, ClosedSurface)
 where
-    S: std::ops::Deref<Target = [Seen]> + Send,
+    S: std::ops::Deref<Target = [Seen]> + Send + Sync,
 {
     let floor = platform.floor;
     let floor_in_box = floor.checked_sub(lo.y).map(|f| f as usize);
@@ -181,12 +158,11 @@ where
         || {
             let seen = seen();
             assert_eq!(seen.len(), n, "one verdict per cell of the box");
-            let verdicts: &[Seen] = &seen;
             let mut known = vec![Known::Unknown; n];
             // Row by row (x fastest): row `r` is `(y, z) = (r % dims[1], r / dims[1])`.
             par::for_each_chunk_mut(&mut known, dims[0], |r, row| {
                 let y = lo.y + (r % dims[1]) as u32;
-                let seen = &verdicts[r * dims[0]..(r + 1) * dims[0]];
+                let seen = &seen[r * dims[0]..(r + 1) * dims[0]];
                 for (k, &s) in row.iter_mut().zip(seen) {
                     *k = if y < floor {
                         Known::Excluded
@@ -838,6 +814,57 @@ const WORDS_PER_TASK: usize = 1 << 12;
 /// Nodes whose edges one parallel task of [`Graph::new`] sets up.
 const NODES_PER_TASK: usize = 1 << 14;
 
+/// The node of the unknown box cell `i`, given which cells are nodes (a bit per cell) and
+/// the count of nodes before each word of those bits.
+#[inline]
+fn node_of(is_node: &[u64], rank: &[u32], i: usize) -> u32 {
+    let w = is_node[i / 64];
+    rank[i / 64] + (w & ((1u64 << (i % 64)) - 1)).count_ones()
+}
+
+/// The edges of the node of the unknown box cell `c` in [`Graph::new`]: its neighbour node
+/// (`node` of the neighbour's cell; `u32::MAX`: none) and the capacity towards it in each
+/// direction, and its terminal capacity (known neighbours and the box's borders).
+fn edges_of(
+    c: usize,
+    [nx, ny, nz]: [usize; 3],
+    known: &[Known],
+    cost: &[u8],
+    node: impl Fn(usize) -> u32,
+) -> ([u32; 6], [u8; 6], i16) {
+    let (x, y, z) = (c % nx, (c / nx) % ny, c / (nx * ny));
+    let neighbours = [
+        (x > 0).then(|| c - 1),
+        (x + 1 < nx).then(|| c + 1),
+        (y > 0).then(|| c - nx),
+        (y + 1 < ny).then(|| c + nx),
+        (z > 0).then(|| c - nx * ny),
+        (z + 1 < nz).then(|| c + nx * ny),
+    ];
+    let own = cost[c].clamp(1, MAX_FACE_COST);
+    let (mut nbr, mut res, mut t) = ([u32::MAX; 6], [0u8; 6], 0i16);
+    for (d, q) in neighbours.into_iter().enumerate() {
+        match q.map(|q| (q, known[q])) {
+            // The bottom border is the platform.
+            None if d == 2 => t += i16::from(own.min(UNIT_FACE_COST)),
+            None => t += i16::from(own),
+            Some((_, Known::Excluded)) => {}
+            Some((q, k)) => {
+                let w = own.min(cost[q].max(1));
+                match k {
+                    Known::Empty => t += i16::from(w),
+                    Known::Solid => t -= i16::from(w),
+                    _ => {
+                        nbr[d] = node(q);
+                        res[d] = w;
+                    }
+                }
+            }
+        }
+    }
+    (nbr, res, t)
+}
+
 /// The direction opposite to `d` (directions are -x, +x, -y, +y, -z, +z).
 #[inline]
 fn opp(d: usize) -> usize {
@@ -848,8 +875,7 @@ impl Graph {
     /// The node of the unknown box cell `i`.
     #[inline]
     fn node(&self, i: usize) -> u32 {
-        let w = self.is_node[i / 64];
-        self.rank[i / 64] + (w & ((1u64 << (i % 64)) - 1)).count_ones()
+        node_of(&self.is_node, &self.rank, i)
     }
 
     /// The residual capacity that lets `v`'s neighbour in direction `d` be its parent in
@@ -873,7 +899,6 @@ impl Graph {
     }
 
     fn new(dims: [usize; 3], known: &[Known], cost: &[u8]) -> Self {
-        let [nx, ny, nz] = dims;
         // The unknown cells' bits, then their list, a word (64 cells) at a time in parallel.
         let mut is_node = Vec::new();
         par::map_into(&mut is_node, known.len().div_ceil(64), |w| {
@@ -898,10 +923,6 @@ impl Graph {
                 bits &= bits - 1;
             }
         });
-        let node = |i: usize| {
-            let w = is_node[i / 64];
-            rank[i / 64] + (w & ((1u64 << (i % 64)) - 1)).count_ones()
-        };
         // Each node's neighbours, capacities and terminal capacity, in parallel by runs of
         // nodes (each node's own).
         let n = cell.len();
@@ -915,38 +936,9 @@ impl Graph {
             |k, nbr, (res, tr)| {
                 let cells = &cell[k * NODES_PER_TASK..];
                 for (((nbr, res), tr), &c) in nbr.iter_mut().zip(res).zip(tr).zip(cells) {
-                    let c = c as usize;
-                    let (x, y, z) = (c % nx, (c / nx) % ny, c / (nx * ny));
-                    let neighbours = [
-                        (x > 0).then(|| c - 1),
-                        (x + 1 < nx).then(|| c + 1),
-                        (y > 0).then(|| c - nx),
-                        (y + 1 < ny).then(|| c + nx),
-                        (z > 0).then(|| c - nx * ny),
-                        (z + 1 < nz).then(|| c + nx * ny),
-                    ];
-                    let own = cost[c].clamp(1, MAX_FACE_COST);
-                    let mut t = 0i16;
-                    for (d, q) in neighbours.into_iter().enumerate() {
-                        match q.map(|q| (q, known[q])) {
-                            // The bottom border is the platform.
-                            None if d == 2 => t += i16::from(own.min(UNIT_FACE_COST)),
-                            None => t += i16::from(own),
-                            Some((_, Known::Excluded)) => {}
-                            Some((q, k)) => {
-                                let w = own.min(cost[q].max(1));
-                                match k {
-                                    Known::Empty => t += i16::from(w),
-                                    Known::Solid => t -= i16::from(w),
-                                    _ => {
-                                        nbr[d] = node(q);
-                                        res[d] = w;
-                                    }
-                                }
-                            }
-                        }
-                    }
-                    *tr = t;
+                    (*nbr, *res, *tr) = edges_of(c as usize, dims, known, cost, |q| {
+                        node_of(&is_node, &rank, q)
+                    });
                 }
             },
         );

@@ -970,10 +970,10 @@ fn place_vertices(
                             let beyond = (inside == Inside::NonPositive
                                 && observed(i.0)
                                 && o.0 == f32::INFINITY)
-                                .then(|| (i.0, value([0, 1, 2].map(|k| 2 * i.1[k] - o.1[k]))));
+                                .then(|| value([0, 1, 2].map(|k| 2 * i.1[k] - o.1[k])));
                             let t = edge_crossing(placement, i.0, o.0, beyond, len);
                             if backs_wanted && o.0 == f32::INFINITY {
-                                back = back_plane(value, inside, floor, (i.1, o.1), beyond, t);
+                                back = back_plane(value, inside, floor, (i, o.1), beyond, t);
                             }
                             if from_p { t } else { 1.0 - t }
                         };
@@ -1017,20 +1017,21 @@ fn place_vertices(
 /// inside and no nearer the surface (an inside cell no triangle marked, or a marked one at
 /// most as far in front), so the surface lies between `i` and `o`.
 ///
-/// `value`: the cells' values by global coordinates; `beyond`: `i`'s value and that of the
-/// cell beyond it on the edge's line where `i` is marked, as [`edge_crossing`] takes them.
+/// `value`: the cells' values by global coordinates; `i`: the inside end's value and
+/// coordinates; `beyond`: the value of the cell beyond it on the edge's line where `i` is
+/// marked, as [`edge_crossing`] takes it.
 fn back_plane(
     value: impl Fn([i64; 3]) -> f32 + Copy,
     inside: Inside,
     floor: Option<i64>,
-    (i, o): ([i64; 3], [i64; 3]),
-    beyond: Option<(f32, f32)>,
+    ((fi, i), o): ((f32, [i64; 3]), [i64; 3]),
+    beyond: Option<f32>,
     t: f32,
 ) -> Option<(DVec3, f64)> {
     if floor.is_some_and(|f| o[1] < f) {
         return None;
     }
-    if let Some((fi, fr)) = beyond
+    if let Some(fr) = beyond
         && (fr == f32::NEG_INFINITY || (observed(fr) && fr <= fi))
     {
         return None;
@@ -1066,16 +1067,10 @@ const BACK_STEP_CELLS: f32 = 0.5;
 /// farther): a wall of half a cell where the grid allows it, as close to the seen surface as
 /// the closure's prior (unseen surface next to seen surface) asks. Where it does not,
 /// [`crate::backs`] moves the finished mesh's vertex there ([`back_plane`] records how).
-/// `beyond`: `i`'s value and that of `r`, the cell beyond it, given exactly where the test
-/// applies (solid signed-distance mode, `i` marked, `o` absent).
-fn edge_crossing(
-    placement: Placement,
-    fi: f32,
-    fo: f32,
-    beyond: Option<(f32, f32)>,
-    len: f32,
-) -> f32 {
-    if let Some((_, fr)) = beyond
+/// `beyond`: the value of `r`, the cell beyond `i`, given exactly where the test applies
+/// (solid signed-distance mode, `i` marked, `o` absent).
+fn edge_crossing(placement: Placement, fi: f32, fo: f32, beyond: Option<f32>, len: f32) -> f32 {
+    if let Some(fr) = beyond
         && observed(fr)
         && fr > fi + BACK_STEP_CELLS
     {
