@@ -159,6 +159,54 @@ fn a_cup_has_a_bottom() {
     assert_eq!(crossings_below(&mesh, 0.0, 0.06, 0.008), 0);
 }
 
+/// The closed surface of revolution about the y axis of `profile` (radius, height), from
+/// the axis out along the bottom and back in along the top, in `segments` steps.
+fn lathe(profile: &[(f32, f32)], segments: u32) -> Vec<Triangle> {
+    let at = |(r, y): (f32, f32), k: u32| {
+        let a = std::f32::consts::TAU * k as f32 / segments as f32;
+        Vec3::new(r * a.cos(), y, r * a.sin())
+    };
+    let mut tris = Vec::new();
+    for w in profile.windows(2) {
+        for k in 0..segments {
+            let (a, b) = (at(w[0], k), at(w[0], k + 1));
+            let (c, d) = (at(w[1], k), at(w[1], k + 1));
+            // Outward for a profile that runs out along the bottom and up the outside.
+            for v in [[a, c, b], [b, c, d]] {
+                if (v[1] - v[0]).cross(v[2] - v[0]).length_squared() > 0.0 {
+                    tris.push(Triangle { v });
+                }
+            }
+        }
+    }
+    tris
+}
+
+/// A deep cup (60 mm wide, 90 mm deep, 4 mm wall and floor, like most tumblers): from 20°
+/// above, the views see its inner wall only down to about 15 mm below the rim. The smallest
+/// surface closing what they saw is a lid there, and the cup came out filled below it, at
+/// three times its volume; a lid whose rim meets a thin wall seen from both sides all
+/// around is a vessel's, and is taken off (`voxoct_mesh::closure`'s vessels): the inside is
+/// open down to the floor, the wall keeps the thickness measured at the top, and the cup
+/// keeps its volume. A vertical ray up the axis meets the floor (twice) and nothing else
+/// up to the rim.
+#[test]
+fn a_deep_cup_is_open_below_where_the_views_stop() {
+    let profile = [
+        (0.0, 0.0),
+        (0.030, 0.0),
+        (0.030, 0.090),
+        (0.026, 0.090),
+        (0.026, 0.004),
+        (0.0, 0.004),
+    ];
+    let model = Model::from_triangles(&lathe(&profile, 96));
+    let (ratio, mesh, _) = model_volume_ratio("deep cup", &model, 0.001);
+    assert!(ratio > 0.85 && ratio < 1.2, "volume ratio {ratio}");
+    assert_eq!(mesh.stats().components, 1);
+    assert_eq!(crossings_below(&mesh, 0.0, 0.0, 0.085), 2, "up the axis");
+}
+
 /// A stool: a 60 × 60 × 10 mm seat on four legs 8 mm square and 40 mm tall. The clip box
 /// drops the readings of the legs' lowest 3 mm, and the cut ended each leg where its
 /// readings end, 2–3 mm above the platform; the clipped band is closed down to the

@@ -28,6 +28,13 @@
 //! wall with it behind the one-sided part (the private `walls` module: the measurement, and
 //! when a wall is continued), so that the unseen inner surface continues the seen one.
 //!
+//! The views see into a deep vessel only so far, and the smallest surface closing the seen
+//! part of its inside is a lid there, whatever the faces cost: the unseen inner wall below
+//! has many times its area. A lid across a vessel faces up (the views look down into it)
+//! and meets a thin wall seen from both sides all around its rim; the private `vessels`
+//! module takes such a lid off and opens the vessel below it, keeping the wall at the
+//! thickness measured at the rim.
+//!
 //! Where the object meets the platform, two rules from how a turntable scan sees a bottom
 //! (the private `platform` module): the band over the platform whose readings the clip box
 //! removed is solid under every column the object stands on (a leg or a foot ring reaches
@@ -49,6 +56,7 @@ use voxoct_core::{Cell, GridSpec, Seen};
 use crate::par;
 
 mod platform;
+mod vessels;
 mod walls;
 
 pub use platform::Platform;
@@ -195,6 +203,18 @@ where
     );
     let mut inside = close_coarse(dims, &known, &cost, coarse_levels(prior_cells));
     drop(cost);
+    // A vessel's lid, where the views stop seeing into it, taken off ([`vessels`]).
+    vessels::open_lids(
+        dims,
+        &mut inside,
+        &known,
+        &marked,
+        (
+            2.0 * walls::resolved_thickness(prior_cells),
+            floor_in_box.map_or(0, |f| f + platform.clipped as usize + 1),
+        ),
+        || chamfer_distance(dims, &marked),
+    );
     // Walls seen from one side continued to the thickness seen elsewhere ([`walls`]); the
     // marked cells' signed distances in cells (of a repeated cell, the last one) are looked
     // up only if there is a wall to continue.

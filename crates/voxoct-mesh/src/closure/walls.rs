@@ -88,26 +88,26 @@ enum End {
 
 /// The cells of a box, `dims` in x-fastest order.
 #[derive(Clone, Copy)]
-struct BoxGrid {
-    dims: [usize; 3],
-    strides: [usize; 3],
+pub(super) struct BoxGrid {
+    pub(super) dims: [usize; 3],
+    pub(super) strides: [usize; 3],
 }
 
 impl BoxGrid {
-    fn new(dims: [usize; 3]) -> Self {
+    pub(super) fn new(dims: [usize; 3]) -> Self {
         Self {
             dims,
             strides: [1, dims[0], dims[0] * dims[1]],
         }
     }
 
-    fn coord(&self, i: usize) -> [usize; 3] {
+    pub(super) fn coord(&self, i: usize) -> [usize; 3] {
         let [nx, ny, _] = self.dims;
         [i % nx, (i / nx) % ny, i / (nx * ny)]
     }
 
     /// The cell at `c + d`, if in the box.
-    fn offset(&self, c: [usize; 3], d: [i64; 3]) -> Option<usize> {
+    pub(super) fn offset(&self, c: [usize; 3], d: [i64; 3]) -> Option<usize> {
         let mut i = 0;
         for a in 0..3 {
             let q = c[a] as i64 + d[a];
@@ -120,7 +120,7 @@ impl BoxGrid {
     }
 
     /// The (up to six) cells that share a face with the cell at `c`.
-    fn face_neighbours(&self, c: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
+    pub(super) fn face_neighbours(&self, c: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
         (0..6).filter_map(move |k| {
             let mut d = [0i64; 3];
             d[k / 2] = if k % 2 == 0 { -1 } else { 1 };
@@ -654,7 +654,7 @@ fn is_sheet(cells: usize, t: f32) -> bool {
 }
 
 /// The 26 offsets to a cell's neighbours.
-fn neighbours26() -> impl Iterator<Item = [i64; 3]> {
+pub(super) fn neighbours26() -> impl Iterator<Item = [i64; 3]> {
     (0..27)
         .map(|k| [k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1])
         .filter(|d| *d != [0, 0, 0])
