@@ -53,7 +53,7 @@ const RIM_REACH: i64 = 2;
 /// (module docs), runs followed for at most `longest` cells; `None` when no axis's run is
 /// seen empty at both ends.
 fn two_sided(g: &Grid, known: &[Known], inside: &[bool], i: usize, longest: usize) -> Option<f32> {
-    let (mut inv2, mut axes) = (0.0f32, 0);
+    let mut inv2 = 0.0f32;
     for (a, ((ca, stride), len)) in g
         .coord(i)
         .into_iter()
@@ -61,7 +61,8 @@ fn two_sided(g: &Grid, known: &[Known], inside: &[bool], i: usize, longest: usiz
         .zip(g.dims)
         .enumerate()
     {
-        // The run's end on each side: `Some(seen)` where it ends, `None` past `longest`.
+        // The run's inside cells on one side of `i`, and whether the cell that ends it was
+        // seen empty; `None` when it goes on past `longest` cells.
         let end = |forward: bool| -> Option<(usize, bool)> {
             let mut k = 0;
             loop {
@@ -86,10 +87,9 @@ fn two_sided(g: &Grid, known: &[Known], inside: &[bool], i: usize, longest: usiz
         if let (Some((lo, true)), Some((hi, true))) = (end(false), end(true)) {
             let l = (lo + hi + 1) as f32;
             inv2 += 1.0 / (l * l);
-            axes += 1;
         }
     }
-    (axes >= 1).then(|| 1.0 / inv2.sqrt())
+    (inv2 > 0.0).then(|| 1.0 / inv2.sqrt())
 }
 
 /// Rows (x runs of the box) per parallel task of the search for lid cells.
