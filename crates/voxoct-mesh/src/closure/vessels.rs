@@ -35,7 +35,9 @@
 //!
 //! A jar or bottle whose neck is narrower than its body keeps its lid across the neck: the
 //! lid's rim does not meet a wall seen from both sides all around. A wall about two cells
-//! thin has no unmarked cell inside it to measure, and its vessel stays filled.
+//! thin has no unmarked cell inside it to measure, and its vessel stays filled. Where no
+//! view saw a vessel's floor it is taken to be on the platform: a solid whose top is a deep
+//! thin-walled crown is opened down to the platform (the README gives the figures).
 
 use super::Known;
 use super::walls::{BoxGrid as Grid, neighbours26};
