@@ -115,12 +115,14 @@ pub(super) fn open_lids(
     }
     let g = Grid::new(dims);
     let n = inside.len();
-    // The cut's invented surface, row by row.
+    // The cut's invented surface, row by row. Every closure looks for it: the six
+    // neighbours are taken from the row's coordinates rather than `Grid::face_neighbours`,
+    // whose divisions per cell took twice the time (bunny: 5.5 against 2.4 ms).
     let mut lid: Vec<usize> = Vec::new();
     {
         let inside = &*inside;
         let [nx, ny, nz] = dims;
-        let open = |j: usize| !inside[j] && matches!(known[j], Known::Unknown | Known::Empty);
+        let open = |j: usize| left_open(known, inside, j);
         par::extend_in_order(&mut lid, ny * nz, ROWS_PER_TASK, |r, out| {
             let (y, z) = (r % ny, r / ny);
             for x in 0..nx {
@@ -214,11 +216,17 @@ pub(super) fn open_lids(
     opened
 }
 
+/// Whether the cut left cell `j` outside where it had a choice or saw it empty (not a
+/// solid, nor a cell below the platform): the side of an invented surface a lid faces.
+fn left_open(known: &[Known], inside: &[bool], j: usize) -> bool {
+    !inside[j] && matches!(known[j], Known::Unknown | Known::Empty)
+}
+
 /// Whether most faces of the lid `patch` toward cells outside face up (+y): the views look
 /// down into a vessel, so the seen part of its inside is above the lid (the invented
 /// surface under an overhang faces down, one between legs sideways).
 fn faces_up(g: &Grid, known: &[Known], inside: &[bool], patch: &[usize]) -> bool {
-    let open = |j: usize| !inside[j] && matches!(known[j], Known::Unknown | Known::Empty);
+    let open = |j: usize| left_open(known, inside, j);
     let (mut up, mut all) = (0usize, 0usize);
     for &i in patch {
         let c = g.coord(i);
