@@ -18,13 +18,20 @@
 //!   ([`open_lids`]'s `thin`), whose faces toward the outside mostly face up (+y), is
 //!   looked at.
 //! - **A vessel's lid**: at least nine in ten of the patch's rim cells (those next to a
-//!   marked cell; the tenth allows for the noise) lie within two cells of an unmarked cell
-//!   inside a thin wall seen from both sides: a cell the cut put inside from which a run of
-//!   inside cells along some axis ends in cells seen empty at both ends (the platform does
-//!   not count as seen), with `t = (Σ 1/L²)^(-1/2)` over such axes (exact for a flat slab,
-//!   as the continued walls' measurement) at most `thin`. Runs are followed for at most
-//!   four times `thin` cells: a longer one carries no thickness. A cell inside a solid
-//!   seen from all around has no such run shorter than the solid is wide.
+//!   marked cell; the tenth allows for the noise) lie within two cells of a cell inside a
+//!   thin wall seen from both sides: a cell inside (marked or put inside by the cut: where
+//!   the views saw both sides of a wall two cells thin, it is all marked) from which a run
+//!   of inside cells along some axis ends in cells seen empty at both ends (the platform
+//!   does not count as seen), with `t = (Σ 1/L²)^(-1/2)` over such axes (exact for a flat
+//!   slab, as the continued walls' measurement) at most `thin`. Runs are followed for at
+//!   most four times `thin` cells: a longer one carries no thickness. A cell inside a solid
+//!   seen from all around has no such run shorter than the solid is wide. A run that the
+//!   space around it crosses next to it (more than half of the run beside it, on one of
+//!   the four sides across it, is outside) goes along a layer, not through a wall: the
+//!   rough layer of a surface seen face-on, whose height varies by the noise, has short
+//!   runs seen empty at both ends along the surface, with air just above them (they
+//!   opened a solid to a shell at 0.5 mm leaves: a cylinder whose dimple's floor was seen
+//!   only around an unseen middle).
 //! - **Opening**: the cells the cut put inside that lie more than `t − 1` cells (3-4-5
 //!   chamfer) from every marked cell and above the band over the platform whose readings
 //!   the clip box removed, reached from the lid through such cells, are put outside, `t`
@@ -33,11 +40,12 @@
 //!   inner surface the mesher puts half a cell further), and a floor as thick as the band.
 //!   A lid with no cell that far from the marked cells has nothing behind it to open.
 //!
-//! A jar or bottle whose neck is narrower than its body keeps its lid across the neck: the
-//! lid's rim does not meet a wall seen from both sides all around. A wall about two cells
-//! thin has no unmarked cell inside it to measure, and its vessel stays filled. Where no
-//! view saw a vessel's floor it is taken to be on the platform: a solid whose top is a deep
-//! thin-walled crown is opened down to the platform (the README gives the figures).
+//! A jar, bottle or vase whose neck is narrower than its body is opened too when the
+//! neck's wall was seen from both sides around the lid: the opening reaches the body
+//! through the neck, and the body's wall is kept as thick as the neck's (the opening knows
+//! no other). Where no view saw a vessel's floor it is taken to be on the platform: a solid
+//! whose top is a deep thin-walled crown is opened down to the platform (the README gives
+//! the figures).
 
 use super::Known;
 use super::walls::{BoxGrid as Grid, neighbours26};
@@ -51,7 +59,7 @@ const WALLED_TENTHS: usize = 9;
 /// looked for.
 const RIM_REACH: i64 = 2;
 
-/// The thickness, in cells, of a wall seen from both sides at the unmarked inside cell `i`
+/// The thickness, in cells, of a wall seen from both sides at the inside cell `i`
 /// (module docs), runs followed for at most `longest` cells; `None` when no axis's run is
 /// seen empty at both ends.
 fn two_sided(g: &Grid, known: &[Known], inside: &[bool], i: usize, longest: usize) -> Option<f32> {
@@ -86,12 +94,37 @@ fn two_sided(g: &Grid, known: &[Known], inside: &[bool], i: usize, longest: usiz
                 }
             }
         };
-        if let (Some((lo, true)), Some((hi, true))) = (end(false), end(true)) {
+        if let (Some((lo, true)), Some((hi, true))) = (end(false), end(true))
+            && !bridged(g, inside, i - lo * stride, (a, lo + hi + 1))
+        {
             let l = (lo + hi + 1) as f32;
             inv2 += 1.0 / (l * l);
         }
     }
     (inv2 > 0.0).then(|| 1.0 / inv2.sqrt())
+}
+
+/// Whether the run of `len` inside cells from `first` along `axis` lies in a layer that the
+/// space around it crosses next to it: along one of the four directions across the axis,
+/// more than half of the neighbouring run's cells are outside. A run through a wall has
+/// the wall beside it on every side; one through the rough layer of a surface seen
+/// face-on (a floor seen from above, its height varying by the noise) has air just above.
+fn bridged(g: &Grid, inside: &[bool], first: usize, (axis, len): (usize, usize)) -> bool {
+    let c = g.coord(first);
+    (0..3).filter(|&b| b != axis).any(|b| {
+        [-1i64, 1].into_iter().any(|s| {
+            let mut d = [0i64; 3];
+            d[b] = s;
+            let outside = (0..len)
+                .filter(|&k| {
+                    let mut q = c;
+                    q[axis] += k;
+                    g.offset(q, d).is_none_or(|j| !inside[j])
+                })
+                .count();
+            2 * outside > len
+        })
+    })
 }
 
 /// Rows (x runs of the box) per parallel task of the search for lid cells.
@@ -298,7 +331,7 @@ fn vessel_wall(
                     let Some(j) = g.offset(c, [dx, dy, dz]) else {
                         continue;
                     };
-                    if marked[j] || !inside[j] {
+                    if !inside[j] {
                         continue;
                     }
                     let t = *memo
@@ -344,6 +377,11 @@ mod tests {
     /// seen empty; the cut put inside everything under the inner surface's lowest seen
     /// layer (the lid) and in the wall. Returns (known, inside, marked).
     fn cup(upside_down: bool) -> (Vec<Known>, Vec<bool>, Vec<bool>) {
+        cup_with_inner_radius(upside_down, 10.0)
+    }
+
+    /// [`cup`] with the inner surface at radius `ri` cells.
+    fn cup_with_inner_radius(upside_down: bool, ri: f32) -> (Vec<Known>, Vec<bool>, Vec<bool>) {
         let n = DIMS[0] * DIMS[1] * DIMS[2];
         let (mut known, mut inside, mut marked) =
             (vec![Known::Unknown; n], vec![false; n], vec![false; n]);
@@ -356,9 +394,9 @@ mod tests {
                     let seen = y >= SEEN_FROM;
                     if r >= 14.5 {
                         known[i] = Known::Empty;
-                    } else if r >= 13.5 || (seen && (9.5..10.5).contains(&r)) {
+                    } else if r >= 13.5 || (seen && (ri - 0.5..ri + 0.5).contains(&r)) {
                         (known[i], marked[i], inside[i]) = (Known::Solid, true, true);
-                    } else if seen && r < 9.5 {
+                    } else if seen && r < ri - 0.5 {
                         known[i] = Known::Empty;
                     } else {
                         inside[i] = true;
@@ -411,6 +449,63 @@ mod tests {
                 if r < 10.5 {
                     *k = Known::Unknown;
                     inside[i] = (i / DIMS[0]) % DIMS[1] < SEEN_FROM + 5;
+                }
+            }
+        }
+        let before = inside.clone();
+        assert_eq!(open(&known, &mut inside, &marked), 0);
+        assert_eq!(inside, before);
+    }
+
+    #[test]
+    fn a_cup_whose_wall_is_two_marked_cells_is_opened() {
+        // Where the views see both sides, the wall is its two surfaces' marked cells and
+        // nothing between them.
+        let (known, mut inside, marked) = cup_with_inner_radius(false, 13.0);
+        assert!(open(&known, &mut inside, &marked) > 5000);
+        for y in [1, 20, 34] {
+            assert!(!inside[at(20, y, 20)], "axis at y = {y}");
+            assert!(!inside[at(9, y, 20)], "inside at y = {y}");
+            // The marked outer cell and the one behind it stay.
+            assert!(
+                inside[at(6, y, 20)] && inside[at(7, y, 20)],
+                "wall at y = {y}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_solid_whose_rough_top_was_seen_around_an_unseen_patch_stays() {
+        // A solid block (radius 14.5 cells, 30 high, its side marked) whose top was seen
+        // face-on through noise: its top two layers marked, the upper one in 2 x 2 blocks of
+        // a checkerboard, seen empty between them, seen empty above; in the middle an unseen
+        // patch (radius 6) the cut closed flat.
+        // Across the rough layer every run is two cells long and seen empty at both ends,
+        // but the air above crosses over each of them: no wall.
+        let n = DIMS[0] * DIMS[1] * DIMS[2];
+        let (mut known, mut inside, mut marked) =
+            (vec![Known::Empty; n], vec![false; n], vec![false; n]);
+        for z in 0..DIMS[2] {
+            for x in 0..DIMS[0] {
+                let r = ((x as f32 - 20.0).powi(2) + (z as f32 - 20.0).powi(2)).sqrt();
+                if r >= 14.5 {
+                    continue;
+                }
+                for y in 0..30 {
+                    let i = at(x, y, z);
+                    inside[i] = true;
+                    if r >= 13.5 || (y == 29 && r >= 6.0) {
+                        (known[i], marked[i]) = (Known::Solid, true);
+                    } else {
+                        known[i] = Known::Unknown;
+                    }
+                }
+                let top = at(x, 30, z);
+                if r < 6.0 {
+                    (known[top], inside[top]) = (Known::Unknown, true);
+                    known[at(x, 31, z)] = Known::Unknown;
+                } else if (x / 2 + z / 2) % 2 == 0 {
+                    (known[top], marked[top], inside[top]) = (Known::Solid, true, true);
                 }
             }
         }
