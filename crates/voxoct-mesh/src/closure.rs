@@ -40,6 +40,9 @@
 //! removed is solid under every column the object stands on (a leg or a foot ring reaches
 //! the platform instead of ending where its readings end), and a vessel whose inside no view
 //! saw down to its floor, which the cut leaves open onto the platform, gets a bottom.
+//! Nothing on a turntable floats: a part that the cut left apart from what rests on the
+//! platform, where only space no view saw lay between them, is joined to it through that
+//! space (the private `support` module).
 //!
 //! The cut is computed with the Boykov–Kolmogorov max-flow algorithm (Y. Boykov,
 //! V. Kolmogorov, "An Experimental Comparison of Min-Cut/Max-Flow Algorithms for Energy
@@ -56,6 +59,7 @@ use voxoct_core::{Cell, GridSpec, Seen};
 use crate::par;
 
 mod platform;
+mod support;
 mod vessels;
 mod walls;
 
@@ -251,6 +255,21 @@ where
         };
         let clipped = platform.clipped as usize;
         platform::cover_footprints(dims, &mut inside, &known, &seen, (f, clipped), margin);
+    }
+    // Parts that float joined to what rests on the platform ([`support`]): a part smaller
+    // than a cube of a thin wall's greatest thickness is the noise's.
+    if let Some(f) = floor_in_box {
+        let thin = 2.0 * walls::resolved_thickness(prior_cells);
+        if thin.is_finite() && thin >= 1.0 {
+            let top = f + platform.clipped as usize + 1;
+            support::hold_up(
+                dims,
+                &mut inside,
+                &known,
+                top,
+                (thin * thin * thin) as usize,
+            );
+        }
     }
     let surface = surface_faces(dims, &inside, &known, &marked, &seen);
     let mut continued = continued.iter().peekable();
