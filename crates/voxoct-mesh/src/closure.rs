@@ -207,16 +207,19 @@ where
     );
     let mut inside = close_coarse(dims, &known, &cost, coarse_levels(prior_cells));
     drop(cost);
-    // A vessel's lid, where the views stop seeing into it, taken off ([`vessels`]).
+    // A thin wall's greatest thickness, in cells (twice the thinnest one resolved), and the
+    // first layer above the platform's clipped band (0 without a platform in the box).
+    let thin = 2.0 * walls::resolved_thickness(prior_cells);
+    let above_band = floor_in_box.map(|f| f + platform.clipped as usize + 1);
+    // A vessel's lid, where the views stop seeing into it, taken off ([`vessels`]). The
+    // chamfer distance is that of `face_costs`, computed again (only for a vessel to open)
+    // rather than kept through the cut.
     vessels::open_lids(
         dims,
         &mut inside,
         &known,
         &marked,
-        (
-            2.0 * walls::resolved_thickness(prior_cells),
-            floor_in_box.map_or(0, |f| f + platform.clipped as usize + 1),
-        ),
+        (thin, above_band.unwrap_or(0)),
         || chamfer_distance(dims, &marked),
     );
     // Walls seen from one side continued to the thickness seen elsewhere ([`walls`]); the
@@ -258,18 +261,17 @@ where
     }
     // Parts that float joined to what rests on the platform ([`support`]): a part smaller
     // than a cube of a thin wall's greatest thickness is the noise's.
-    if let Some(f) = floor_in_box {
-        let thin = 2.0 * walls::resolved_thickness(prior_cells);
-        if thin.is_finite() && thin >= 1.0 {
-            let top = f + platform.clipped as usize + 1;
-            support::hold_up(
-                dims,
-                &mut inside,
-                &known,
-                top,
-                (thin * thin * thin) as usize,
-            );
-        }
+    if let Some(top) = above_band
+        && thin.is_finite()
+        && thin >= 1.0
+    {
+        support::hold_up(
+            dims,
+            &mut inside,
+            &known,
+            top,
+            (thin * thin * thin) as usize,
+        );
     }
     let surface = surface_faces(dims, &inside, &known, &marked, &seen);
     let mut continued = continued.iter().peekable();

@@ -20,6 +20,7 @@ use std::collections::HashMap;
 
 use super::Known;
 use super::walls::BoxGrid as Grid;
+use crate::bitbox::BitBox;
 
 /// The runs of inside cells of every row of the box (x fastest): `row_start[r]..
 /// row_start[r + 1]` index row `r`'s runs, each `[first, past the last]` x.
@@ -108,11 +109,12 @@ pub(super) fn hold_up(
     top: usize,
     min_cells: usize,
 ) -> usize {
-    let [nx, ny, _] = dims;
+    let [nx, ny, nz] = dims;
+    let rows = ny * nz;
     let runs = Runs::new(dims, inside);
     let root = parts_of(dims, &runs);
     let mut held_root = vec![false; root.len()];
-    for r in 0..runs.row_start.len() - 1 {
+    for r in 0..rows {
         if r % ny <= top {
             for k in runs.of_row(r) {
                 held_root[root[k] as usize] = true;
@@ -121,7 +123,7 @@ pub(super) fn hold_up(
     }
     // The floating parts' cells, by root, largest first.
     let mut floating: HashMap<u32, Vec<usize>> = HashMap::new();
-    for r in 0..runs.row_start.len() - 1 {
+    for r in 0..rows {
         for k in runs.of_row(r) {
             if !held_root[root[k] as usize] {
                 let [a, b] = runs.runs[k];
@@ -140,13 +142,13 @@ pub(super) fn hold_up(
         return 0;
     }
     parts.sort_by_key(|p| (std::cmp::Reverse(p.len()), p[0]));
-    // The cells held up, a bit per cell.
-    let mut held = vec![0u64; inside.len().div_ceil(64)];
-    for r in 0..runs.row_start.len() - 1 {
+    // The cells held up (a cell `i` is bit `i % nx` of row `i / nx`).
+    let mut held = BitBox::new(dims);
+    for r in 0..rows {
         for k in runs.of_row(r).filter(|&k| held_root[root[k] as usize]) {
             let [a, b] = runs.runs[k];
             for x in a as usize..b as usize {
-                set(&mut held, r * nx + x);
+                held.set(x, r);
             }
         }
     }
@@ -157,24 +159,21 @@ pub(super) fn hold_up(
         let Some(path) = passage(&g, inside, known, &held, part) else {
             continue;
         };
-        // The passage and its face neighbours no view saw: three cells wide.
+        // The passage and its face neighbours no view saw, three cells wide, held up with
+        // the part.
         for &p in &path {
             for j in std::iter::once(p).chain(g.face_neighbours(g.coord(p))) {
                 if open(inside, known, j) {
                     inside[j] = true;
                     added += 1;
                 }
-            }
-        }
-        for &p in &path {
-            for j in std::iter::once(p).chain(g.face_neighbours(g.coord(p))) {
                 if inside[j] {
-                    set(&mut held, j);
+                    held.set(j % nx, j / nx);
                 }
             }
         }
         for &p in part {
-            set(&mut held, p);
+            held.set(p % nx, p / nx);
         }
     }
     added
@@ -193,7 +192,7 @@ fn passage(
     g: &Grid,
     inside: &[bool],
     known: &[Known],
-    held: &[u64],
+    held: &BitBox,
     part: &[usize],
 ) -> Option<Vec<usize>> {
     const STEPS: [[i64; 3]; 6] = [
@@ -219,7 +218,9 @@ fn passage(
         let mut next = Vec::new();
         for &i in &layer {
             let c = g.coord(i);
-            if g.face_neighbours(c).any(|j| get(held, j)) {
+            if g.face_neighbours(c)
+                .any(|j| held.get(j % g.dims[0], j / g.dims[0]))
+            {
                 let (mut path, mut at) = (vec![i], i);
                 while let Some(&p) = from.get(&at)
                     && p != usize::MAX
@@ -242,16 +243,6 @@ fn passage(
         layer = next;
     }
     None
-}
-
-#[inline]
-fn get(bits: &[u64], i: usize) -> bool {
-    bits[i / 64] & (1 << (i % 64)) != 0
-}
-
-#[inline]
-fn set(bits: &mut [u64], i: usize) {
-    bits[i / 64] |= 1 << (i % 64);
 }
 
 #[cfg(test)]
