@@ -121,6 +121,11 @@ pub(super) fn hold_up(
             }
         }
     }
+    // Nothing rests on the platform (a room whose box's bottom is its floor layer): nothing
+    // to hold a part up, and every search would flood the unseen space in vain.
+    if !held_root.iter().any(|&h| h) {
+        return 0;
+    }
     // The floating parts' cells, by root, largest first.
     let mut floating: HashMap<u32, Vec<usize>> = HashMap::new();
     for r in 0..rows {
@@ -155,10 +160,16 @@ pub(super) fn hold_up(
     drop((runs, root, held_root));
     let g = Grid::new(dims);
     let mut added = 0;
+    // Cells a search reached in vain since the last part was held up: whole regions of
+    // open cells next to nothing held, which a later search need not flood again (a scene
+    // may have many small parts over the same unseen space). Holding a part up may make a
+    // region next to something held, so that forgets them.
+    let mut dead = BitBox::new(dims);
     for part in &parts {
-        let Some(path) = passage(&g, inside, known, &held, part) else {
+        let Some(path) = passage(&g, (inside, known), &held, &mut dead, part) else {
             continue;
         };
+        dead = BitBox::new(dims);
         // The passage and its face neighbours no view saw, three cells wide, held up with
         // the part.
         for &p in &path {
@@ -185,14 +196,14 @@ fn open(inside: &[bool], known: &[Known], j: usize) -> bool {
     !inside[j] && known[j] == Known::Unknown
 }
 
-/// The shortest passage of [`open`] cells from next to `part` to next to a cell `held` up
-/// (breadth first, down first among equally short ones), from its held end; `None` when
-/// there is none.
+/// The shortest passage of [`open`] cells, none of them `dead`, from next to `part` to next
+/// to a cell `held` up (breadth first, down first among equally short ones), from its held
+/// end; `None` when there is none, and then every cell searched is made `dead`.
 fn passage(
     g: &Grid,
-    inside: &[bool],
-    known: &[Known],
+    (inside, known): (&[bool], &[Known]),
     held: &BitBox,
+    dead: &mut BitBox,
     part: &[usize],
 ) -> Option<Vec<usize>> {
     const STEPS: [[i64; 3]; 6] = [
@@ -205,10 +216,12 @@ fn passage(
     ];
     // Each reached cell's predecessor (`usize::MAX` next to the part).
     let mut from: HashMap<usize, usize> = HashMap::new();
+    let nx = g.dims[0];
+    let free = |j: usize, dead: &BitBox| open(inside, known, j) && !dead.get(j % nx, j / nx);
     let mut layer: Vec<usize> = Vec::new();
     for &i in part {
         for j in g.face_neighbours(g.coord(i)) {
-            if open(inside, known, j) && !from.contains_key(&j) {
+            if free(j, dead) && !from.contains_key(&j) {
                 from.insert(j, usize::MAX);
                 layer.push(j);
             }
@@ -218,9 +231,7 @@ fn passage(
         let mut next = Vec::new();
         for &i in &layer {
             let c = g.coord(i);
-            if g.face_neighbours(c)
-                .any(|j| held.get(j % g.dims[0], j / g.dims[0]))
-            {
+            if g.face_neighbours(c).any(|j| held.get(j % nx, j / nx)) {
                 let (mut path, mut at) = (vec![i], i);
                 while let Some(&p) = from.get(&at)
                     && p != usize::MAX
@@ -232,7 +243,7 @@ fn passage(
             }
             for d in STEPS {
                 if let Some(j) = g.offset(c, d)
-                    && open(inside, known, j)
+                    && free(j, dead)
                     && !from.contains_key(&j)
                 {
                     from.insert(j, i);
@@ -241,6 +252,9 @@ fn passage(
             }
         }
         layer = next;
+    }
+    for &j in from.keys() {
+        dead.set(j % nx, j / nx);
     }
     None
 }
@@ -314,6 +328,23 @@ mod tests {
         }
         // The one-cell blob is the noise's.
         assert!(!held(&inside, at(1, 20, 1)));
+    }
+
+    /// A room whose box's bottom is the floor layer: nothing rests on it, so nothing is
+    /// held up, and no search floods the unseen space.
+    #[test]
+    fn nothing_is_joined_when_nothing_rests_on_the_platform() {
+        let (mut inside, known) = stem_and_block();
+        for y in 0..=12 {
+            for x in 9..12 {
+                for z in 9..12 {
+                    inside[at(x, y, z)] = false;
+                }
+            }
+        }
+        let before = inside.clone();
+        assert_eq!(hold_up(DIMS, &mut inside, &known, 1, 8), 0);
+        assert_eq!(inside, before);
     }
 
     #[test]
