@@ -267,6 +267,28 @@ fn legs_reach_the_platform() {
     assert_eq!(mesh.stats().components, 1);
 }
 
+/// Flat boxes 150 × 75 mm, 25, 26 and 27 mm tall. The cut is solved first on blocks of
+/// 2 × 2 × 2 cells; a block of a box's top layer and the air over it is half solid, half
+/// seen empty, and such a block was left to the block cut, which saw no top there: the
+/// boxes whose top fell in one block with the air over it (25 and 27 mm) came out as shells
+/// along their seen faces, a fortieth of their volume. Such a block is solid now, at every
+/// level, and every box keeps its volume.
+#[test]
+fn a_flat_box_is_solid_whatever_layer_its_top_lies_in() {
+    for h in [0.025, 0.026, 0.027] {
+        let model = Model::from_triangles(&cuboid(
+            Vec3::new(-0.075, 0.0, -0.0375),
+            Vec3::new(0.075, h, 0.0375),
+        ));
+        let (ratio, mesh, _) = model_volume_ratio("flat box", &model, 0.001);
+        assert!(
+            ratio > 0.95 && ratio < 1.05,
+            "{h} m tall: volume ratio {ratio}"
+        );
+        assert_eq!(mesh.stats().components, 1);
+    }
+}
+
 /// A narrow-necked vase (the built-in `vase`: a 90 mm body, a mouth 24 mm wide, 6 mm
 /// walls): from 20° above no view sees into its body, and the smallest surface that closes
 /// what no view saw is a lid across the neck, which filled the body to about the volume of
