@@ -267,6 +267,33 @@ fn legs_reach_the_platform() {
     assert_eq!(mesh.stats().components, 1);
 }
 
+/// A mushroom: a cap 70 mm wide and 12 mm thick on a stem 16 mm wide and 40 mm tall. The
+/// cap is seen from above and around, never from below, and the cut closed it right behind
+/// its seen top and side: a shell over its shadow (volume ratio 0.17). Each layer of the
+/// cap's inside is enclosed by its seen side and covered by its seen top, and is filled
+/// (`voxoct_mesh::closure`'s slabs; 0.79: a layer whose seen side the noise left open stays
+/// open); the shadow under the cap stays open.
+#[test]
+fn a_cap_on_a_stem_is_solid() {
+    let profile = [
+        (0.0, 0.0),
+        (0.008, 0.0),
+        (0.008, 0.040),
+        (0.035, 0.040),
+        (0.035, 0.052),
+        (0.0, 0.052),
+    ];
+    let model = Model::from_triangles(&lathe(&profile, 96));
+    let (ratio, mesh, _) = model_volume_ratio("mushroom", &model, 0.001);
+    assert!(ratio > 0.7 && ratio < 1.1, "volume ratio {ratio}");
+    assert_eq!(mesh.stats().components, 1);
+    assert_eq!(
+        crossings_below(&mesh, 0.025, 0.0, 0.035),
+        0,
+        "under the cap"
+    );
+}
+
 /// Flat boxes 150 × 75 mm, 25, 26 and 27 mm tall. The cut is solved first on blocks of
 /// 2 × 2 × 2 cells; a block of a box's top layer and the air over it is half solid, half
 /// seen empty, and such a block was left to the block cut, which saw no top there: the

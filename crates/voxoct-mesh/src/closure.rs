@@ -40,6 +40,9 @@
 //! removed is solid under every column the object stands on (a leg or a foot ring reaches
 //! the platform instead of ending where its readings end), and a vessel whose inside no view
 //! saw down to its floor, which the cut leaves open onto the platform, gets a bottom.
+//! A slab seen from above and all around (a cap on a stem, a seat on legs), which the cut
+//! closes right behind its seen top and side, is filled where each layer of its inside is
+//! enclosed by its seen side and covered by its seen top (the private `slabs` module).
 //! Nothing on a turntable floats: a part that the cut left apart from what rests on the
 //! platform, where only space no view saw lay between them, is joined to it through that
 //! space (the private `support` module).
@@ -59,6 +62,7 @@ use voxoct_core::{Cell, GridSpec, Seen};
 use crate::par;
 
 mod platform;
+mod slabs;
 mod support;
 mod vessels;
 mod walls;
@@ -221,6 +225,15 @@ where
         &marked,
         (thin, above_band.unwrap_or(0), floor_in_box),
         || chamfer_distance(dims, &marked),
+    );
+    // Slabs seen from above and all around filled ([`slabs`]), where their inside is at
+    // least as thick as the noise band.
+    slabs::fill_covered_pockets(
+        dims,
+        &mut inside,
+        &known,
+        &marked,
+        walls::resolved_thickness(prior_cells).ceil() as usize,
     );
     // Walls seen from one side continued to the thickness seen elsewhere ([`walls`]); the
     // marked cells' signed distances in cells (of a repeated cell, the last one) are looked
