@@ -213,7 +213,8 @@ where
     drop(cost);
     // A thin wall's greatest thickness, in cells (twice the thinnest one resolved), and the
     // first layer above the platform's clipped band (0 without a platform in the box).
-    let thin = 2.0 * walls::resolved_thickness(prior_cells);
+    let resolved = walls::resolved_thickness(prior_cells);
+    let thin = 2.0 * resolved;
     let above_band = floor_in_box.map(|f| f + platform.clipped as usize + 1);
     // A vessel's lid, where the views stop seeing into it, taken off ([`vessels`]). The
     // chamfer distance is that of `face_costs`, computed again (only for a vessel to open)
@@ -228,13 +229,7 @@ where
     );
     // Slabs seen from above and all around filled ([`slabs`]), where their inside is at
     // least as thick as the noise band.
-    slabs::fill_covered_pockets(
-        dims,
-        &mut inside,
-        &known,
-        &marked,
-        walls::resolved_thickness(prior_cells).ceil() as usize,
-    );
+    slabs::fill_covered_pockets(dims, &mut inside, &known, &marked, resolved.ceil() as usize);
     // Walls seen from one side continued to the thickness seen elsewhere ([`walls`]); the
     // marked cells' signed distances in cells (of a repeated cell, the last one) are looked
     // up only if there is a wall to continue.
@@ -256,7 +251,7 @@ where
                 inside: &mut inside,
                 known: &known,
                 marked: &marked,
-                resolved: walls::resolved_thickness(prior_cells),
+                resolved,
             },
             values,
         )

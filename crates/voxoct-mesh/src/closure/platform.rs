@@ -131,26 +131,14 @@ fn low_top(band: &Band, known: &[Known], (x, z): (usize, usize), lowest: usize) 
     {
         return false;
     }
-    let solid = [
-        (-1i64, -1i64),
-        (-1, 0),
-        (-1, 1),
-        (0, -1),
-        (0, 1),
-        (1, -1),
-        (1, 0),
-        (1, 1),
-    ]
-    .into_iter()
-    .filter(|&(dx, dz)| {
-        let (a, b) = (x as i64 + dx, z as i64 + dz);
-        a >= 0
-            && b >= 0
-            && (a as usize) < band.dims[0]
-            && (b as usize) < band.dims[2]
-            && known[band.at(a as usize, top, b as usize)] == Known::Solid
-    })
-    .count();
+    // A column at the box's side is not inside a face (the box is grown by a cell).
+    if x == 0 || z == 0 || x + 1 == band.dims[0] || z + 1 == band.dims[2] {
+        return false;
+    }
+    let solid = (x - 1..=x + 1)
+        .flat_map(|a| (z - 1..=z + 1).map(move |b| (a, b)))
+        .filter(|&(a, b)| (a, b) != (x, z) && known[band.at(a, top, b)] == Known::Solid)
+        .count();
     solid >= 6
 }
 
@@ -300,7 +288,7 @@ fn hidden(seen: Seen) -> bool {
 }
 
 /// The (up to four) cells that share an edge with cell `c` of an `nx` × `nz` layer.
-fn layer_neighbours(c: usize, nx: usize, nz: usize) -> impl Iterator<Item = usize> {
+pub(super) fn layer_neighbours(c: usize, nx: usize, nz: usize) -> impl Iterator<Item = usize> {
     let (x, z) = (c % nx, c / nx);
     [
         (x > 0).then(|| c - 1),
@@ -315,7 +303,7 @@ fn layer_neighbours(c: usize, nx: usize, nz: usize) -> impl Iterator<Item = usiz
 /// Marks in `reached` (an `nx` × `nz` layer) the cells 4-connected to `from` through cells
 /// that are neither `wall` nor already reached, `from` included (each marked as reached);
 /// returns them.
-fn spread(
+pub(super) fn spread(
     from: Vec<usize>,
     reached: &mut [bool],
     wall: &[bool],

@@ -17,6 +17,7 @@
 //! What no view can tell apart is a slab from a bowl upside down: that comes out solid.
 
 use super::Known;
+use super::platform::{layer_neighbours, spread};
 use crate::bitbox::BitBox;
 use crate::par;
 
@@ -69,44 +70,32 @@ pub(super) fn fill_covered_pockets(
     {
         let inside = &*inside;
         par::extend_in_order(&mut found, ny, 1, |y, out| {
-            // Cells of the layer already in a patch, `x + z * nx`.
-            let mut done = vec![false; nx * nz];
-            let mut patch: Vec<(usize, usize)> = Vec::new();
-            for z in 0..nz {
-                for x in 0..nx {
-                    if done[x + z * nx] || !hollow(inside, at(x, y, z)) {
-                        continue;
-                    }
-                    // The patch of hollow cells around (x, z), and whether it is enclosed
-                    // and covered.
-                    patch.clear();
-                    patch.push((x, z));
-                    done[x + z * nx] = true;
-                    let mut pocket = true;
-                    let mut k = 0;
-                    while k < patch.len() {
-                        let (px, pz) = patch[k];
-                        k += 1;
-                        pocket &= covered.get(px, pz * ny + y);
-                        if px == 0 || pz == 0 || px + 1 == nx || pz + 1 == nz {
-                            pocket = false;
-                            continue;
-                        }
-                        for (qx, qz) in [(px - 1, pz), (px + 1, pz), (px, pz - 1), (px, pz + 1)] {
-                            let q = at(qx, y, qz);
-                            if hollow(inside, q) {
-                                if !done[qx + qz * nx] {
-                                    done[qx + qz * nx] = true;
-                                    patch.push((qx, qz));
-                                }
-                            } else if !inside[q] && !marked[q] {
-                                pocket = false;
-                            }
-                        }
-                    }
-                    if pocket {
-                        out.extend(patch.iter().map(|&(px, pz)| at(px, y, pz)));
-                    }
+            // The layer's hollow cells (`x + z * nx`); the others bound the patches.
+            let wall: Vec<bool> = (0..nx * nz)
+                .map(|c| !hollow(inside, at(c % nx, y, c / nx)))
+                .collect();
+            let mut done = wall.clone();
+            for start in 0..nx * nz {
+                if done[start] {
+                    continue;
+                }
+                let patch = spread(vec![start], &mut done, &wall, nx, nz);
+                // Enclosed (away from the box's sides, bordered by inside or marked cells
+                // only) and covered.
+                let pocket = patch.iter().all(|&c| {
+                    let (x, z) = (c % nx, c / nx);
+                    covered.get(x, z * ny + y)
+                        && x > 0
+                        && z > 0
+                        && x + 1 < nx
+                        && z + 1 < nz
+                        && layer_neighbours(c, nx, nz).all(|q| {
+                            let q = at(q % nx, y, q / nx);
+                            hollow(inside, q) || inside[q] || marked[q]
+                        })
+                });
+                if pocket {
+                    out.extend(patch.iter().map(|&c| at(c % nx, y, c / nx)));
                 }
             }
         });

@@ -331,7 +331,9 @@ mod tests {
     }
 
     /// A room whose box's bottom is the floor layer: nothing rests on it, so nothing is
-    /// held up, and no search floods the unseen space.
+    /// held up and the box is left as it was. (The early return this exercises only saves
+    /// the searches, which find nothing either way: the test checks the result it keeps, not
+    /// the time it saves: 47 s to 0.22 s on the NYU room at 5 mm, measured by `--stats`.)
     #[test]
     fn nothing_is_joined_when_nothing_rests_on_the_platform() {
         let (mut inside, known) = stem_and_block();
