@@ -316,6 +316,28 @@ fn a_flat_box_is_solid_whatever_layer_its_top_lies_in() {
     }
 }
 
+/// Flat boxes 80 × 50 mm, 3.5 mm tall at 1 mm leaves and 5 mm tall at 0.5 mm: the clip
+/// box drops the readings of their lowest 3 mm, so the views see a top and a sliver of
+/// side over an interior no view reaches. The base on the platform costs the cut nothing
+/// (it is where whatever stands there rests, not a surface it invents); priced like a face
+/// next to an observation, it cost as much as a lid right under the seen top, and the boxes
+/// came out as shells of that top: 1.2 cm³ in two pieces and 1.1 cm³ in eight, of 14 and 20.
+#[test]
+fn a_flat_box_rests_on_the_platform_whatever_the_leaf() {
+    for (h, leaf) in [(0.0035, 0.001), (0.005, 0.0005)] {
+        let model = Model::from_triangles(&cuboid(
+            Vec3::new(-0.040, 0.0, -0.025),
+            Vec3::new(0.040, h, 0.025),
+        ));
+        let (ratio, mesh, _) = model_volume_ratio("thin box", &model, leaf);
+        assert!(
+            ratio > 0.8 && ratio < 1.2,
+            "{h} m tall at {leaf} m leaves: volume ratio {ratio}"
+        );
+        assert_eq!(mesh.stats().components, 1);
+    }
+}
+
 /// A narrow-necked vase (the built-in `vase`: a 90 mm body, a mouth 24 mm wide, 6 mm
 /// walls): from 20° above no view sees into its body, and the smallest surface that closes
 /// what no view saw is a lid across the neck, which filled the body to about the volume of
