@@ -103,16 +103,15 @@ fn unknown_output_names_fail_cleanly() {
     common::assert_scan_fails_cleanly(&["--out", "x.3mf", "--ascii"], "--ascii");
 }
 
-#[test]
-fn a_z_up_millimetre_model_keeps_its_size_and_orientation() {
-    let dir = tempfile::tempdir().unwrap();
-    // A tower 40 mm wide (x), 30 mm deep (y), 70 mm tall (z), as a slicer would write it.
+/// Writes a box from the origin to `size` (Z up, millimetres, outward triangles) as binary
+/// STL `name` in `dir`; returns its path.
+fn box_stl(dir: &std::path::Path, name: &str, size: Vec3) -> std::path::PathBuf {
     let v: Vec<Vec3> = (0..8)
         .map(|i| {
             Vec3::new(
-                if i & 1 == 0 { 0.0 } else { 40.0 },
-                if i & 2 == 0 { 0.0 } else { 30.0 },
-                if i & 4 == 0 { 0.0 } else { 70.0 },
+                if i & 1 == 0 { 0.0 } else { size.x },
+                if i & 2 == 0 { 0.0 } else { size.y },
+                if i & 4 == 0 { 0.0 } else { size.z },
             )
         })
         .collect();
@@ -130,8 +129,28 @@ fn a_z_up_millimetre_model_keeps_its_size_and_orientation() {
         [1, 3, 5],
         [3, 7, 5],
     ];
-    let model = dir.path().join("tower.stl");
+    let model = dir.join(name);
     voxoct::stl::write_file(&model, &v, &t, voxoct::stl::StlFormat::Binary, 1.0).unwrap();
+    model
+}
+
+/// A box lower than the clip box's floor (3 mm over the platform) leaves no reading: the
+/// error says so, with the floor's height, and nothing is written.
+#[test]
+fn a_model_lower_than_the_clip_floor_is_refused_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    // 40 x 30 mm, 2 mm tall, Z up in millimetres.
+    let model = box_stl(dir.path(), "plate.stl", Vec3::new(40.0, 30.0, 2.0));
+    let m = model.to_str().unwrap();
+    let args = [&SMALL[..], &["--model", m, "--out", "plate-scan.stl"]].concat();
+    common::assert_scan_fails_cleanly(&args, "3.0 mm over the platform");
+}
+
+#[test]
+fn a_z_up_millimetre_model_keeps_its_size_and_orientation() {
+    let dir = tempfile::tempdir().unwrap();
+    // A tower 40 mm wide (x), 30 mm deep (y), 70 mm tall (z), as a slicer would write it.
+    let model = box_stl(dir.path(), "tower.stl", Vec3::new(40.0, 30.0, 70.0));
     let m = model.to_str().unwrap();
     let args = [&SMALL[..], &["--model", m, "--out", "t.stl"]].concat();
     let out = scan(&args, dir.path());

@@ -106,11 +106,16 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
         acquired.snapshots.iter().map(|s| s.frames.len()).sum(),
     );
     let limit_m = disagreement_explained_m(acquired.config.rig.sensor_position_m.length());
+    let clip_floor_m = acquired.config.clip.min.y;
     let result = reconstruct_with_progress(acquired, &params, &progress)?;
     report::warn_if_disagreeing(result.disagreement_m, limit_m);
     if result.mesh.triangles.is_empty() {
         let leaves = result.tree.leaf_count();
-        return Err(report::explain_empty(args, result.triangles_in, leaves));
+        return Err(report::explain_empty(
+            args,
+            (result.triangles_in, leaves),
+            clip_floor_m,
+        ));
     }
     let closed = result.mesh.check_closed_manifold();
     let facts = (limit_m, closed.is_ok());

@@ -255,13 +255,21 @@ pub fn summary(s: &Stats, out: &std::path::Path, file: &MeshFile) {
     }
 }
 
-/// Why the mesh came out empty, from what the run saw.
-pub fn explain_empty(args: &Args, triangles_in: usize, leaves: usize) -> String {
+/// Why the mesh came out empty, from what the run saw (`clip_floor_m`: the height of the
+/// clip box's floor over the platform, metres).
+pub fn explain_empty(
+    args: &Args,
+    (triangles_in, leaves): (usize, usize),
+    clip_floor_m: f32,
+) -> String {
     if triangles_in == 0 {
-        return "the scan produced an empty mesh: no frame had a valid depth pixel inside the \
-                clip box (all-zero or out-of-range frames, or the object outside [clip]; check \
-                [clip], [rig] and the frames)"
-            .into();
+        return format!(
+            "the scan produced an empty mesh: no frame had a valid depth pixel inside the clip \
+             box (all-zero or out-of-range frames, the object outside [clip], or an object no \
+             taller than the clip box's floor, {:.1} mm over the platform, whose readings are \
+             dropped with the platform's; check [clip], [rig] and the frames)",
+            clip_floor_m * 1000.0
+        );
     }
     if leaves == 0 {
         return format!(
