@@ -113,7 +113,8 @@ fn run(args: &Args, matches: &ArgMatches) -> Result<(), String> {
         let leaves = result.tree.leaf_count();
         return Err(report::explain_empty(
             args,
-            (result.triangles_in, leaves),
+            result.triangles_in,
+            leaves,
             clip_floor_m,
         ));
     }

@@ -257,11 +257,7 @@ pub fn summary(s: &Stats, out: &std::path::Path, file: &MeshFile) {
 
 /// Why the mesh came out empty, from what the run saw (`clip_floor_m`: the height of the
 /// clip box's floor over the platform, metres).
-pub fn explain_empty(
-    args: &Args,
-    (triangles_in, leaves): (usize, usize),
-    clip_floor_m: f32,
-) -> String {
+pub fn explain_empty(args: &Args, triangles_in: usize, leaves: usize, clip_floor_m: f32) -> String {
     if triangles_in == 0 {
         return format!(
             "the scan produced an empty mesh: no frame had a valid depth pixel inside the clip \

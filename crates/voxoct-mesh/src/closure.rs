@@ -24,7 +24,7 @@
 //! face next to an observation, a base cost as much as the lid right under a seen top, so
 //! that a flat object came out as a hollow shell under its top or solid depending on its
 //! thickness and the leaf size: a 150 × 75 × 8 mm box was 2.4 cm³ of 90 at 0.5 mm leaves,
-//! a washer 40 mm across and 5 mm thick 1.0 cm³ of 15.3 in five pieces, a 60 mm disc
+//! a washer 80 mm across (a 50 mm hole) and 5 mm thick 1.0 cm³ of 15.3 in five pieces, a 60 mm disc
 //! 3.5 mm thick 0.9 cm³ of 9.9 at 1 mm.)
 //!
 //! The cut keeps the back of a wall that the views saw from one side only a leaf behind it

@@ -12,7 +12,7 @@
 //!   of noise beside a face), or up through the band's highest layer under a cell seen
 //!   empty where most of its neighbours in that layer are solid too (the seen top of an
 //!   object whose readings end in the first layer that has any: a 60 mm disc 4 mm thick
-//!   came out as a 1.3 cm³ shell, 11.3 in truth, now 10.2), and below which nothing was
+//!   came out as a 1.3 cm³ shell, 11.3 in truth, now 10.4), and below which nothing was
 //!   seen empty, is continued down to the platform: the object rests on it.
 //! - **A vessel's hidden inside gets a bottom** ([`cover_footprints`], after the cut). On
 //!   the platform's layer, a region that the object's foot encloses (the outline of what is
@@ -125,8 +125,9 @@ pub(super) fn extend_into_band(
 /// cell of noise, or the edge of a ledge, has not).
 fn low_top(band: &Band, known: &[Known], (x, z): (usize, usize), lowest: usize) -> bool {
     let top = band.clipped_top;
-    if top + 1 >= band.dims[1]
-        || known[band.at(x, top + 1, z)] != Known::Empty
+    // `band.top` is the layer above `top` unless the box ends at `top`.
+    if band.top == top
+        || known[band.at(x, band.top, z)] != Known::Empty
         || !(band.floor + lowest..=top).all(|y| known[band.at(x, y, z)] == Known::Solid)
     {
         return false;
